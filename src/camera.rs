@@ -1,0 +1,231 @@
+//! Pinhole intrinsics: projection, back-projection and pyramid scaling.
+//!
+//! Camera frame: +x right, +y down, +z forward (optical axis), metres.
+//! Pixel (u, v) has its centre at integer coordinates; u grows right, v down.
+//! `fy` may be negative (ICL-NUIM's convention); every formula here uses it
+//! as given, and `focal_abs` is provided where a length in pixels is needed.
+
+use glam::{Vec2, Vec3};
+
+/// Pinhole intrinsics of one image, in pixels, with the image size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Intrinsics {
+    /// Focal length along x, pixels.
+    pub fx: f32,
+    /// Focal length along y, pixels (negative in ICL-NUIM's convention).
+    pub fy: f32,
+    /// Principal point x, pixels.
+    pub cx: f32,
+    /// Principal point y, pixels.
+    pub cy: f32,
+    /// Image width, pixels.
+    pub width: usize,
+    /// Image height, pixels.
+    pub height: usize,
+}
+
+impl Intrinsics {
+    /// Creates intrinsics from focal lengths and principal point, pixels.
+    #[must_use]
+    pub const fn new(fx: f32, fy: f32, cx: f32, cy: f32, width: usize, height: usize) -> Self {
+        Self {
+            fx,
+            fy,
+            cx,
+            cy,
+            width,
+            height,
+        }
+    }
+
+    /// Checks that the values are finite, the focal lengths non-zero and the size non-empty.
+    #[must_use]
+    pub fn is_valid(&self) -> bool {
+        let finite = [self.fx, self.fy, self.cx, self.cy]
+            .iter()
+            .all(|v| v.is_finite());
+        finite
+            && self.fx.abs() > 1.0
+            && self.fy.abs() > 1.0
+            && self.width > 0
+            && self.height > 0
+            && self.width <= 16384
+            && self.height <= 16384
+    }
+
+    /// Mean absolute focal length, pixels: the scale of one pixel at 1 m depth.
+    #[must_use]
+    pub fn focal_abs(&self) -> f32 {
+        0.5 * (self.fx.abs() + self.fy.abs())
+    }
+
+    /// Projects a point in the camera frame (metres) to continuous pixel coordinates.
+    /// Meaningful only for `point_in_camera.z > 0`.
+    #[inline]
+    #[must_use]
+    pub fn project(&self, point_in_camera: Vec3) -> Vec2 {
+        let inv_z = 1.0 / point_in_camera.z;
+        Vec2::new(
+            self.fx * point_in_camera.x * inv_z + self.cx,
+            self.fy * point_in_camera.y * inv_z + self.cy,
+        )
+    }
+
+    /// Back-projects pixel (u, v) at depth `depth` (metres along +z) to the camera frame.
+    #[inline]
+    #[must_use]
+    pub fn back_project(&self, u: f32, v: f32, depth: f32) -> Vec3 {
+        Vec3::new(
+            (u - self.cx) * depth / self.fx,
+            (v - self.cy) * depth / self.fy,
+            depth,
+        )
+    }
+
+    /// Rounds continuous pixel coordinates to the nearest pixel inside the image.
+    #[inline]
+    #[must_use]
+    pub fn pixel_index(&self, pixel: Vec2) -> Option<usize> {
+        let u = (pixel.x + 0.5).floor();
+        let v = (pixel.y + 0.5).floor();
+        if u >= 0.0 && v >= 0.0 && (u as usize) < self.width && (v as usize) < self.height {
+            Some(v as usize * self.width + u as usize)
+        } else {
+            None
+        }
+    }
+
+    /// Intrinsics of the image downsampled by 2 (pixel centres kept consistent).
+    #[must_use]
+    pub fn half(&self) -> Self {
+        Self {
+            fx: self.fx * 0.5,
+            fy: self.fy * 0.5,
+            cx: (self.cx + 0.5) * 0.5 - 0.5,
+            cy: (self.cy + 0.5) * 0.5 - 0.5,
+            width: self.width / 2,
+            height: self.height / 2,
+        }
+    }
+
+    /// Intrinsics of pyramid level `level` (0 = full resolution).
+    #[must_use]
+    pub fn level(&self, level: usize) -> Self {
+        (0..level).fold(*self, |k, _| k.half())
+    }
+
+    /// Number of pixels, `width * height`.
+    #[must_use]
+    pub fn pixel_count(&self) -> usize {
+        self.width * self.height
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn project_inverts_back_project() {
+        let k = Intrinsics::new(481.2, -480.0, 319.5, 239.5, 640, 480);
+        let p = k.back_project(100.25, 300.5, 2.0);
+        let px = k.project(p);
+        assert!((px.x - 100.25).abs() < 1e-4 && (px.y - 300.5).abs() < 1e-4);
+    }
+
+    #[test]
+    fn half_keeps_pixel_centres() {
+        let k = Intrinsics::new(500.0, 500.0, 319.5, 239.5, 640, 480);
+        let h = k.half();
+        // Full-res pixel centres 0 and 1 average to half-res pixel 0.
+        let p = k.back_project(0.5, 0.5, 1.0);
+        let q = h.project(p);
+        assert!(q.x.abs() < 1e-5 && q.y.abs() < 1e-5);
+        assert_eq!((h.width, h.height), (320, 240));
+    }
+}
+
+/// Published camera calibrations, selectable by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CameraPreset {
+    /// TUM RGB-D freiburg1 (Kinect), 640x480, depth 5000 units/m.
+    TumFr1,
+    /// TUM RGB-D freiburg2 (Kinect), 640x480, depth 5000 units/m.
+    TumFr2,
+    /// TUM RGB-D freiburg3 (Asus Xtion, undistorted), 640x480, depth 5000 units/m.
+    TumFr3,
+    /// ICL-NUIM (synthetic), 640x480, depth 5000 units/m, negative fy.
+    IclNuim,
+    /// Microsoft 7-Scenes (Kinect v1), 640x480, depth millimetres, 65535 invalid.
+    SevenScenes,
+}
+
+impl CameraPreset {
+    /// All presets, in a stable order.
+    pub const ALL: [CameraPreset; 5] = [
+        Self::TumFr1,
+        Self::TumFr2,
+        Self::TumFr3,
+        Self::IclNuim,
+        Self::SevenScenes,
+    ];
+
+    /// Short name used by the CLI, the wasm API and the page (`tum-fr3`, `icl-nuim`, ...).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::TumFr1 => "tum-fr1",
+            Self::TumFr2 => "tum-fr2",
+            Self::TumFr3 => "tum-fr3",
+            Self::IclNuim => "icl-nuim",
+            Self::SevenScenes => "7-scenes",
+        }
+    }
+
+    /// Looks a preset up by its short name.
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+
+    /// Intrinsics at 640x480, pixels.
+    #[must_use]
+    pub fn intrinsics(self) -> Intrinsics {
+        let (fx, fy, cx, cy) = match self {
+            Self::TumFr1 => (517.3, 516.5, 318.6, 255.3),
+            Self::TumFr2 => (520.9, 521.0, 325.1, 249.7),
+            Self::TumFr3 => (535.4, 539.2, 320.1, 247.6),
+            // ICL-NUIM's ground truth is expressed for fy = -480: using it as
+            // given makes the estimate directly comparable with the dataset's poses.
+            Self::IclNuim => (481.20, -480.0, 319.5, 239.5),
+            Self::SevenScenes => (585.0, 585.0, 320.0, 240.0),
+        };
+        Intrinsics::new(fx, fy, cx, cy, 640, 480)
+    }
+
+    /// Depth conversion for this camera: units per metre, valid range (m), invalid raw value.
+    #[must_use]
+    pub fn depth_settings(self) -> crate::frame::DepthSettings {
+        use crate::frame::DepthSettings;
+        match self {
+            Self::TumFr1 | Self::TumFr2 | Self::TumFr3 => DepthSettings {
+                scale: 5000.0,
+                min_m: 0.3,
+                max_m: 4.0,
+                invalid_raw: None,
+            },
+            Self::IclNuim => DepthSettings {
+                scale: 5000.0,
+                min_m: 0.3,
+                max_m: 8.0,
+                invalid_raw: None,
+            },
+            Self::SevenScenes => DepthSettings {
+                scale: 1000.0,
+                min_m: 0.3,
+                max_m: 4.0,
+                invalid_raw: Some(65535),
+            },
+        }
+    }
+}

@@ -1,0 +1,549 @@
+//! RGB-D dataset loaders (TUM RGB-D, ICL-NUIM, Microsoft 7-Scenes), trajectory
+//! and PLY writers.
+//!
+//! Parsing works in two pure steps on strings so that the browser (which only
+//! has a list of file names and can read text files on request) and the native
+//! CLI share it:
+//!
+//! 1. [`detect_layout`] looks at the file names and returns a [`Layout`]: the
+//!    dataset kind and the small text files the parser needs.
+//! 2. [`parse_sequence`] takes those texts and builds the [`Sequence`]: the
+//!    frame list and, when present, the ground-truth trajectory.
+//!
+//! Paths: every path returned ([`Layout::index_files`], [`FrameEntry::colour`],
+//! [`FrameEntry::depth`], [`FrameEntry::pose_file`]) is spelled exactly as in
+//! the listing given to [`detect_layout`] (minus any leading `./`), '/'
+//! separated, i.e. relative to the listing's root (the directory given to
+//! [`Sequence::open`]). When every name shares a leading folder (a browser gives `teddy/rgb.txt`), that folder is
+//! [`Layout::root_prefix`] and is already included in the returned paths.
+//!
+//! Poses are `world_from_camera` (camera-to-world, as the datasets publish
+//! them), metres, timestamps in seconds (TUM) or frame numbers (ICL-NUIM,
+//! 7-Scenes).
+
+pub mod icl_nuim;
+pub mod ply;
+pub mod seven_scenes;
+pub mod trajectory;
+pub mod tum;
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use glam::DAffine3;
+use thiserror::Error;
+
+use crate::camera::CameraPreset;
+use crate::frame::{Channel, DepthSettings, FrameError, RgbdFrame};
+
+pub use seven_scenes::parse_pose_matrix;
+
+/// Why a dataset could not be read; every variant names the file concerned.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum DatasetError {
+    /// A file or directory could not be read.
+    #[error("cannot read {path}: {message}")]
+    Io {
+        /// The path that failed.
+        path: String,
+        /// The operating system's message.
+        message: String,
+    },
+    /// The folder (or the listing) holds no file at all.
+    #[error("the folder is empty: no files to read")]
+    EmptyFolder,
+    /// The files do not match any supported dataset layout.
+    #[error("unrecognised dataset layout: {hint}")]
+    UnknownLayout {
+        /// What was expected and a sample of what was found.
+        hint: String,
+    },
+    /// A file named by an index file (or needed by the layout) is absent.
+    #[error("{path} is missing (listed in {listed_in})")]
+    MissingFile {
+        /// The missing path, as in the listing.
+        path: String,
+        /// The index file (or step) that asked for it.
+        listed_in: String,
+    },
+    /// A line of a text file could not be parsed.
+    #[error("{file}, line {line_number}: {reason}: `{line}`")]
+    MalformedLine {
+        /// The file being parsed.
+        file: String,
+        /// 1-based line number.
+        line_number: usize,
+        /// The offending line (trimmed).
+        line: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The index files list no usable frame.
+    #[error("the sequence has no frames (no colour image could be paired with a depth image)")]
+    NoFrames,
+    /// An image of a frame could not be decoded.
+    #[error("{path}: {source}")]
+    Frame {
+        /// The image file (or both, for a size mismatch).
+        path: String,
+        /// The decoder's error.
+        #[source]
+        source: FrameError,
+    },
+}
+
+/// Which published dataset layout a folder follows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DatasetKind {
+    /// TUM RGB-D: `rgb.txt`, `depth.txt`, optional `groundtruth.txt`.
+    Tum,
+    /// ICL-NUIM "frei_png": `associations.txt`, optional `*.gt.freiburg`.
+    IclNuim,
+    /// Microsoft 7-Scenes: `seq-XX/frame-NNNNNN.{color.png,depth.png,pose.txt}`.
+    SevenScenes,
+}
+
+impl DatasetKind {
+    /// Short human-readable name (`TUM RGB-D`, `ICL-NUIM`, `7-Scenes`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Tum => "TUM RGB-D",
+            Self::IclNuim => "ICL-NUIM",
+            Self::SevenScenes => "7-Scenes",
+        }
+    }
+}
+
+/// Result of [`detect_layout`]: the dataset kind and the text files to read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Layout {
+    /// The dataset layout recognised.
+    pub kind: DatasetKind,
+    /// Leading folder shared by every name (`""` or ending in `/`); already
+    /// included in every path this module returns.
+    pub root_prefix: String,
+    /// Text files [`parse_sequence`] needs, full names as in the listing
+    /// (TUM: rgb.txt, depth.txt, groundtruth.txt if present; ICL-NUIM: the
+    /// associations file and the `*.gt.freiburg` if present; 7-Scenes: none).
+    pub index_files: Vec<String>,
+}
+
+/// One RGB-D frame of a sequence: where its images (and pose) are.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameEntry {
+    /// Position in the sequence, 0-based.
+    pub index: usize,
+    /// Seconds (TUM, the colour image's timestamp) or frame number (ICL-NUIM,
+    /// 7-Scenes).
+    pub timestamp: f64,
+    /// Colour image path, as in the listing.
+    pub colour: String,
+    /// Depth image path, as in the listing.
+    pub depth: String,
+    /// Per-frame pose file (7-Scenes `.pose.txt`), as in the listing.
+    pub pose_file: Option<String>,
+}
+
+/// A parsed sequence: camera, frames in time order, ground truth if known.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sequence {
+    /// The dataset layout.
+    pub kind: DatasetKind,
+    /// Camera calibration and depth conversion to use.
+    pub preset: CameraPreset,
+    /// Frames, in time order.
+    pub frames: Vec<FrameEntry>,
+    /// Ground truth `(timestamp, world_from_camera)`, sorted by timestamp,
+    /// metres; empty when the dataset folder has none.
+    pub ground_truth: Vec<(f64, DAffine3)>,
+}
+
+/// Frames and ground truth `(timestamp, world_from_camera)` parsed from index texts.
+pub(crate) type Parsed = (Vec<FrameEntry>, Vec<(f64, DAffine3)>);
+
+/// File name after the last '/'.
+pub(crate) fn base_name(path: &str) -> &str {
+    path.rsplit('/').next().unwrap_or(path)
+}
+
+/// Names in the listing that are not hidden (no component starting with '.').
+fn visible(name: &str) -> bool {
+    !name
+        .split('/')
+        .any(|c| c.starts_with('.') && c != "." && c != "..")
+}
+
+/// Longest leading folder shared by all names ("" or ending in '/').
+fn common_prefix(names: &[&str]) -> String {
+    let Some(first) = names.first() else {
+        return String::new();
+    };
+    let mut prefix: Vec<&str> = first.split('/').collect();
+    prefix.pop(); // the file name itself
+    for name in &names[1..] {
+        let mut parts: Vec<&str> = name.split('/').collect();
+        parts.pop();
+        let shared = prefix
+            .iter()
+            .zip(&parts)
+            .take_while(|(a, b)| a == b)
+            .count();
+        prefix.truncate(shared);
+    }
+    prefix.iter().map(|c| format!("{c}/")).collect()
+}
+
+/// Recognises the dataset layout from a listing of file names ('/' separated,
+/// relative to the folder chosen by the user; a shared leading folder is
+/// allowed). Pure: no filesystem access.
+pub fn detect_layout(file_names: &[String]) -> Result<Layout, DatasetError> {
+    let names: Vec<&str> = file_names
+        .iter()
+        .map(|n| n.trim_start_matches("./"))
+        .filter(|n| !n.is_empty() && visible(n))
+        .collect();
+    if names.is_empty() {
+        return Err(DatasetError::EmptyFolder);
+    }
+    let root_prefix = common_prefix(&names);
+    let top: Vec<&str> = names
+        .iter()
+        .filter_map(|n| n.strip_prefix(root_prefix.as_str()))
+        .filter(|n| !n.contains('/'))
+        .collect();
+    let full = |n: &str| format!("{root_prefix}{n}");
+
+    if top.contains(&"rgb.txt") && top.contains(&"depth.txt") {
+        let mut index_files = vec![full("rgb.txt"), full("depth.txt")];
+        if top.contains(&"groundtruth.txt") {
+            index_files.push(full("groundtruth.txt"));
+        }
+        return Ok(Layout {
+            kind: DatasetKind::Tum,
+            root_prefix,
+            index_files,
+        });
+    }
+    let mut assoc: Vec<&str> = top
+        .iter()
+        .copied()
+        .filter(|n| n.ends_with(".txt") && n.to_ascii_lowercase().contains("assoc"))
+        .collect();
+    if !assoc.is_empty() {
+        assoc.sort_unstable();
+        let mut index_files = vec![full(assoc[0])];
+        let mut gt: Vec<&str> = top
+            .iter()
+            .copied()
+            .filter(|n| n.ends_with(".gt.freiburg"))
+            .collect();
+        gt.sort_unstable();
+        if let Some(g) = gt.first() {
+            index_files.push(full(g));
+        }
+        return Ok(Layout {
+            kind: DatasetKind::IclNuim,
+            root_prefix,
+            index_files,
+        });
+    }
+    if names
+        .iter()
+        .any(|n| seven_scenes::colour_frame_number(base_name(n)).is_some())
+    {
+        return Ok(Layout {
+            kind: DatasetKind::SevenScenes,
+            root_prefix,
+            index_files: Vec::new(),
+        });
+    }
+    let mut sample: Vec<&str> = names.iter().take(5).copied().collect();
+    if names.len() > 5 {
+        sample.push("...");
+    }
+    Err(DatasetError::UnknownLayout {
+        hint: format!(
+            "expected rgb.txt + depth.txt (TUM RGB-D), an associations .txt (ICL-NUIM) or \
+             seq-XX/frame-NNNNNN.color.png (7-Scenes); found {} file(s): {}",
+            names.len(),
+            sample.join(", ")
+        ),
+    })
+}
+
+/// Text of an index file named by the layout.
+pub(crate) fn index_text<'a>(
+    texts: &'a HashMap<String, String>,
+    name: &str,
+) -> Result<&'a str, DatasetError> {
+    texts
+        .get(name)
+        .map(String::as_str)
+        .ok_or_else(|| DatasetError::MissingFile {
+            path: name.to_owned(),
+            listed_in: "the index texts given to parse_sequence".to_owned(),
+        })
+}
+
+/// Builds the frame list (and the ground truth when its file is in the layout)
+/// from the listing and the texts of `layout.index_files` (keyed by those exact
+/// names). `name_hint` (e.g. the folder name) helps pick the TUM camera
+/// (`freiburg1`/`fr1`, ...; default fr3). Pure: no filesystem access. For
+/// 7-Scenes the ground truth is left empty: read each frame's `pose_file` and
+/// parse it with [`parse_pose_matrix`] (as [`Sequence::open`] does).
+pub fn parse_sequence(
+    layout: &Layout,
+    file_names: &[String],
+    index_texts: &HashMap<String, String>,
+    name_hint: Option<&str>,
+) -> Result<Sequence, DatasetError> {
+    let listing: std::collections::HashSet<&str> = file_names
+        .iter()
+        .map(|n| n.trim_start_matches("./"))
+        .collect();
+    let (preset, frames, mut ground_truth) = match layout.kind {
+        DatasetKind::Tum => {
+            let (frames, gt) = tum::parse(layout, &listing, index_texts)?;
+            let hint_texts = [
+                name_hint.unwrap_or(""),
+                layout.root_prefix.as_str(),
+                layout
+                    .index_files
+                    .first()
+                    .and_then(|f| index_texts.get(f))
+                    .map_or("", |t| {
+                        t.lines()
+                            .take_while(|l| l.trim_start().starts_with('#'))
+                            .last()
+                            .unwrap_or("")
+                    }),
+            ];
+            (tum::preset_from_hints(&hint_texts), frames, gt)
+        }
+        DatasetKind::IclNuim => {
+            let (frames, gt) = icl_nuim::parse(layout, &listing, index_texts)?;
+            (CameraPreset::IclNuim, frames, gt)
+        }
+        DatasetKind::SevenScenes => (
+            CameraPreset::SevenScenes,
+            seven_scenes::parse(&listing)?,
+            Vec::new(),
+        ),
+    };
+    if frames.is_empty() {
+        return Err(DatasetError::NoFrames);
+    }
+    ground_truth.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(Sequence {
+        kind: layout.kind,
+        preset,
+        frames,
+        ground_truth,
+    })
+}
+
+/// Lists `dir` recursively (3 levels: the sequence folder, an optional
+/// wrapping folder, and `rgb/`-style sub-folders), names '/' separated and
+/// relative to `dir`, hidden entries skipped, sorted.
+pub fn list_files(dir: &Path) -> Result<Vec<String>, DatasetError> {
+    fn walk(
+        base: &Path,
+        rel: &str,
+        depth: usize,
+        out: &mut Vec<String>,
+    ) -> Result<(), DatasetError> {
+        let here: PathBuf = if rel.is_empty() {
+            base.to_path_buf()
+        } else {
+            base.join(rel)
+        };
+        let io = |e: std::io::Error| DatasetError::Io {
+            path: here.display().to_string(),
+            message: e.to_string(),
+        };
+        for entry in std::fs::read_dir(&here).map_err(io)? {
+            let entry = entry.map_err(io)?;
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if name.starts_with('.') {
+                continue;
+            }
+            let child = if rel.is_empty() {
+                name
+            } else {
+                format!("{rel}/{name}")
+            };
+            let kind = entry.file_type().map_err(io)?;
+            // Follow symlinks: metadata() resolves them.
+            let is_dir = kind.is_dir()
+                || (kind.is_symlink()
+                    && std::fs::metadata(base.join(&child)).is_ok_and(|m| m.is_dir()));
+            if is_dir {
+                if depth > 0 {
+                    walk(base, &child, depth - 1, out)?;
+                }
+            } else {
+                out.push(child);
+            }
+        }
+        Ok(())
+    }
+    let mut out = Vec::new();
+    walk(dir, "", 2, &mut out)?;
+    out.sort_unstable();
+    Ok(out)
+}
+
+fn read_text(root: &Path, name: &str) -> Result<String, DatasetError> {
+    let path = root.join(name);
+    std::fs::read_to_string(&path).map_err(|e| DatasetError::Io {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })
+}
+
+fn read_bytes(root: &Path, name: &str) -> Result<Vec<u8>, DatasetError> {
+    let path = root.join(name);
+    std::fs::read(&path).map_err(|e| DatasetError::Io {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })
+}
+
+impl Sequence {
+    /// Opens a dataset folder natively: lists it, detects the layout, reads the
+    /// index files and (7-Scenes) every per-frame pose file. Frame paths are
+    /// relative to `dir`; pass `dir` as `root` to [`read_frame`].
+    pub fn open(dir: &Path) -> Result<Sequence, DatasetError> {
+        let names = list_files(dir)?;
+        let layout = detect_layout(&names)?;
+        let mut texts = HashMap::new();
+        for name in &layout.index_files {
+            texts.insert(name.clone(), read_text(dir, name)?);
+        }
+        // The folder's own name (e.g. `rgbd_dataset_freiburg1_xyz`) picks the TUM camera.
+        let absolute = dir.canonicalize().unwrap_or_else(|_| dir.to_path_buf());
+        let hint = absolute
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let mut sequence = parse_sequence(&layout, &names, &texts, Some(&hint))?;
+        if sequence.kind == DatasetKind::SevenScenes {
+            let mut gt = Vec::new();
+            for frame in &sequence.frames {
+                if let Some(pose_file) = &frame.pose_file {
+                    let pose = parse_pose_matrix(&read_text(dir, pose_file)?, pose_file)?;
+                    gt.push((frame.timestamp, pose));
+                }
+            }
+            sequence.ground_truth = gt;
+        }
+        Ok(sequence)
+    }
+
+    /// Ground-truth `world_from_camera` nearest in time to `timestamp`, if one
+    /// lies within `max_dt` (same unit as the timestamps; inclusive).
+    #[must_use]
+    pub fn ground_truth_for(&self, timestamp: f64, max_dt: f64) -> Option<DAffine3> {
+        let gt = &self.ground_truth;
+        let i = gt.partition_point(|(t, _)| *t < timestamp);
+        [i.checked_sub(1), Some(i)]
+            .into_iter()
+            .flatten()
+            .filter_map(|j| gt.get(j))
+            .map(|(t, pose)| ((t - timestamp).abs(), pose))
+            .filter(|(dt, _)| *dt <= max_dt)
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, pose)| *pose)
+    }
+}
+
+/// Decodes a frame's colour and depth bytes (read by any means, e.g. in the
+/// browser), naming the offending file in the error. Depth in metres per
+/// `settings`.
+pub fn decode_frame(
+    entry: &FrameEntry,
+    colour: &[u8],
+    depth: &[u8],
+    settings: &DepthSettings,
+) -> Result<RgbdFrame, DatasetError> {
+    RgbdFrame::from_png_bytes(colour, depth, settings).map_err(|source| {
+        let path = match &source {
+            FrameError::Decode {
+                channel: Channel::Colour,
+                ..
+            }
+            | FrameError::BufferLength {
+                channel: Channel::Colour,
+                ..
+            } => entry.colour.clone(),
+            FrameError::Decode {
+                channel: Channel::Depth,
+                ..
+            }
+            | FrameError::BufferLength {
+                channel: Channel::Depth,
+                ..
+            }
+            | FrameError::DepthNot16Bit { .. } => entry.depth.clone(),
+            _ => format!("{} + {}", entry.colour, entry.depth),
+        };
+        DatasetError::Frame { path, source }
+    })
+}
+
+/// Reads and decodes one frame natively; `root` is the directory the
+/// sequence was opened from. Depth in metres per `settings`.
+pub fn read_frame(
+    root: &Path,
+    entry: &FrameEntry,
+    settings: &DepthSettings,
+) -> Result<RgbdFrame, DatasetError> {
+    let colour = read_bytes(root, &entry.colour)?;
+    let depth = read_bytes(root, &entry.depth)?;
+    decode_frame(entry, &colour, &depth, settings)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn listing(names: &[&str]) -> Vec<String> {
+        names.iter().map(|s| (*s).to_owned()).collect()
+    }
+
+    #[test]
+    fn empty_and_unknown_listings() {
+        assert_eq!(detect_layout(&[]), Err(DatasetError::EmptyFolder));
+        assert_eq!(
+            detect_layout(&listing(&[".DS_Store"])),
+            Err(DatasetError::EmptyFolder)
+        );
+        let err =
+            detect_layout(&listing(&["photos/a.jpg", "photos/notes.txt"])).expect_err("unknown");
+        match err {
+            DatasetError::UnknownLayout { hint } => {
+                assert!(
+                    hint.contains("rgb.txt") && hint.contains("photos/a.jpg"),
+                    "{hint}"
+                );
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn shared_folder_and_hidden_files() {
+        let names = listing(&[
+            "teddy/rgb.txt",
+            "teddy/depth.txt",
+            ".DS_Store",
+            "./teddy/rgb/1.png",
+        ]);
+        let layout = detect_layout(&names).expect("TUM");
+        assert_eq!(layout.kind, DatasetKind::Tum);
+        assert_eq!(layout.root_prefix, "teddy/");
+        assert_eq!(layout.index_files, vec!["teddy/rgb.txt", "teddy/depth.txt"]);
+        assert_eq!(DatasetKind::SevenScenes.name(), "7-Scenes");
+    }
+}

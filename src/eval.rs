@@ -1,0 +1,344 @@
+//! Trajectory accuracy: absolute trajectory error (ATE) after a rigid
+//! Horn/Umeyama alignment without scale, and relative pose error (RPE) over
+//! consecutive frames, as in the TUM RGB-D benchmark tools.
+//!
+//! Trajectories are `(timestamp, world_from_camera)` with translations in
+//! metres; the estimate's world frame may differ from the ground truth's by
+//! any rigid motion (ATE aligns it; RPE is invariant to it).
+
+use glam::{DAffine3, DMat3, DQuat, DVec3};
+use nalgebra::Matrix3;
+use thiserror::Error;
+
+use crate::dataset::tum::associate_timestamps;
+
+/// Why an evaluation could not be computed.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum EvalError {
+    /// Too few estimate poses could be matched to the ground truth.
+    #[error(
+        "only {found} estimate pose(s) matched the ground truth in time, need at least {needed}"
+    )]
+    TooFewPairs {
+        /// Matched pairs found.
+        found: usize,
+        /// Pairs needed.
+        needed: usize,
+    },
+    /// A pose or timestamp holds NaN or infinity.
+    #[error("the {which} trajectory holds a non-finite value")]
+    NonFinite {
+        /// "estimate" or "ground truth".
+        which: &'static str,
+    },
+    /// The alignment's singular value decomposition failed.
+    #[error("the alignment is degenerate (SVD did not converge)")]
+    Degenerate,
+}
+
+/// Absolute trajectory error statistics, metres, after rigid alignment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AteResult {
+    /// Root mean square of the translation errors, metres.
+    pub rmse_m: f64,
+    /// Mean translation error, metres.
+    pub mean_m: f64,
+    /// Median translation error, metres.
+    pub median_m: f64,
+    /// Largest translation error, metres.
+    pub max_m: f64,
+    /// Number of matched poses used.
+    pub pairs: usize,
+    /// The rigid alignment applied: maps estimate-world points to
+    /// ground-truth-world points.
+    pub ground_truth_from_estimate: DAffine3,
+}
+
+/// Relative pose error over consecutive matched frames (delta = 1 frame).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RpeResult {
+    /// RMS of the relative translation errors, metres per frame step.
+    pub translation_rmse_m: f64,
+    /// RMS of the relative rotation errors, radians per frame step.
+    pub rotation_rmse_rad: f64,
+    /// Number of relative motions compared.
+    pub pairs: usize,
+}
+
+fn check_finite(poses: &[(f64, DAffine3)], which: &'static str) -> Result<(), EvalError> {
+    if poses.iter().all(|(t, p)| t.is_finite() && p.is_finite()) {
+        Ok(())
+    } else {
+        Err(EvalError::NonFinite { which })
+    }
+}
+
+/// Matches each estimate pose to the ground-truth pose nearest in time
+/// (|dt| <= `max_dt`, each used once, greedy by |dt| as TUM's
+/// `associate.py`); returns `(estimate, ground truth)` in estimate time order.
+fn associate_poses(
+    estimate: &[(f64, DAffine3)],
+    ground_truth: &[(f64, DAffine3)],
+    max_dt: f64,
+) -> Vec<(DAffine3, DAffine3)> {
+    let te: Vec<f64> = estimate.iter().map(|p| p.0).collect();
+    let tg: Vec<f64> = ground_truth.iter().map(|p| p.0).collect();
+    associate_timestamps(&te, &tg, max_dt)
+        .into_iter()
+        .map(|(i, j)| (estimate[i].1, ground_truth[j].1))
+        .collect()
+}
+
+/// Matches estimate and ground-truth poses by nearest timestamp within
+/// `max_dt` (0.02 s for TUM; frame-number timestamps match exactly) and
+/// returns their camera positions `(estimate, ground truth)`, metres.
+#[must_use]
+pub fn associate(
+    estimate: &[(f64, DAffine3)],
+    ground_truth: &[(f64, DAffine3)],
+    max_dt: f64,
+) -> Vec<(DVec3, DVec3)> {
+    associate_poses(estimate, ground_truth, max_dt)
+        .into_iter()
+        .map(|(e, g)| (e.translation, g.translation))
+        .collect()
+}
+
+/// Rigid transform (no scale) minimising sum |R e + t - g|^2 (Horn/Umeyama,
+/// SVD with the reflection fix). Needs at least one pair.
+fn align_rigid(pairs: &[(DVec3, DVec3)]) -> Result<DAffine3, EvalError> {
+    let n = pairs.len() as f64;
+    let mu_e = pairs.iter().map(|p| p.0).sum::<DVec3>() / n;
+    let mu_g = pairs.iter().map(|p| p.1).sum::<DVec3>() / n;
+    // Cross-covariance H = sum (g - mu_g)(e - mu_e)^T.
+    let mut h = Matrix3::<f64>::zeros();
+    for (e, g) in pairs {
+        let de = *e - mu_e;
+        let dg = *g - mu_g;
+        for r in 0..3 {
+            for c in 0..3 {
+                h[(r, c)] += dg[r] * de[c];
+            }
+        }
+    }
+    let svd = h.svd(true, true);
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return Err(EvalError::Degenerate);
+    };
+    // R = U diag(1, 1, d) V^T with d = sign(det(U V^T)) so that det R = +1.
+    let d = if (u * v_t).determinant() < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let s = Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 1.0, d));
+    let r = u * s * v_t;
+    let rotation = DMat3::from_cols(
+        DVec3::new(r[(0, 0)], r[(1, 0)], r[(2, 0)]),
+        DVec3::new(r[(0, 1)], r[(1, 1)], r[(2, 1)]),
+        DVec3::new(r[(0, 2)], r[(1, 2)], r[(2, 2)]),
+    );
+    if !rotation.is_finite() {
+        return Err(EvalError::Degenerate);
+    }
+    let translation = mu_g - rotation * mu_e;
+    Ok(DAffine3::from_mat3_translation(rotation, translation))
+}
+
+/// Absolute trajectory error: associates poses within `max_dt`, aligns the
+/// estimate's positions to the ground truth's with the best rigid motion
+/// (no scale) and reports the position error statistics in metres. Needs at
+/// least 3 matched poses.
+pub fn ate(
+    estimate: &[(f64, DAffine3)],
+    ground_truth: &[(f64, DAffine3)],
+    max_dt: f64,
+) -> Result<AteResult, EvalError> {
+    check_finite(estimate, "estimate")?;
+    check_finite(ground_truth, "ground truth")?;
+    let pairs = associate(estimate, ground_truth, max_dt);
+    if pairs.len() < 3 {
+        return Err(EvalError::TooFewPairs {
+            found: pairs.len(),
+            needed: 3,
+        });
+    }
+    let alignment = align_rigid(&pairs)?;
+    let mut errors: Vec<f64> = pairs
+        .iter()
+        .map(|(e, g)| (alignment.transform_point3(*e) - *g).length())
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    let n = errors.len();
+    let median_m = if n % 2 == 1 {
+        errors[n / 2]
+    } else {
+        0.5 * (errors[n / 2 - 1] + errors[n / 2])
+    };
+    Ok(AteResult {
+        rmse_m: (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
+        mean_m: errors.iter().sum::<f64>() / n as f64,
+        median_m,
+        max_m: errors[n - 1],
+        pairs: n,
+        ground_truth_from_estimate: alignment,
+    })
+}
+
+/// Rotation angle of a (near-)rotation matrix, radians in [0, pi].
+fn rotation_angle(m: DMat3) -> f64 {
+    let q = DQuat::from_mat3(&m).normalize();
+    2.0 * q.xyz().length().atan2(q.w.abs())
+}
+
+/// Relative pose error over consecutive matched frames: for each step
+/// i -> i+1, error = (G_i^-1 G_{i+1})^-1 (E_i^-1 E_{i+1}); reports the RMS of
+/// its translation (metres) and rotation angle (radians). Needs at least 2
+/// matched poses.
+pub fn rpe(
+    estimate: &[(f64, DAffine3)],
+    ground_truth: &[(f64, DAffine3)],
+    max_dt: f64,
+) -> Result<RpeResult, EvalError> {
+    check_finite(estimate, "estimate")?;
+    check_finite(ground_truth, "ground truth")?;
+    let pairs = associate_poses(estimate, ground_truth, max_dt);
+    if pairs.len() < 2 {
+        return Err(EvalError::TooFewPairs {
+            found: pairs.len(),
+            needed: 2,
+        });
+    }
+    let (mut sum_t, mut sum_r) = (0.0, 0.0);
+    for w in pairs.windows(2) {
+        let (e0, g0) = w[0];
+        let (e1, g1) = w[1];
+        let delta_e = e0.inverse() * e1;
+        let delta_g = g0.inverse() * g1;
+        let error = delta_g.inverse() * delta_e;
+        sum_t += error.translation.length_squared();
+        sum_r += rotation_angle(error.matrix3).powi(2);
+    }
+    let steps = pairs.len() - 1;
+    Ok(RpeResult {
+        translation_rmse_m: (sum_t / steps as f64).sqrt(),
+        rotation_rmse_rad: (sum_r / steps as f64).sqrt(),
+        pairs: steps,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::EulerRot;
+
+    fn trajectory(n: usize) -> Vec<(f64, DAffine3)> {
+        (0..n)
+            .map(|i| {
+                let s = i as f64 * 0.1;
+                let rotation = DQuat::from_euler(EulerRot::XYZ, 0.1 * s, 0.3 * s.sin(), 0.05 * s);
+                let position = DVec3::new(s.cos(), 0.5 * (2.0 * s).sin(), 0.2 * s);
+                (
+                    i as f64 / 30.0,
+                    DAffine3::from_rotation_translation(rotation, position),
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn ate_is_zero_under_a_rigid_change_of_world() {
+        let gt = trajectory(60);
+        let world = DAffine3::from_rotation_translation(
+            DQuat::from_euler(EulerRot::ZYX, 2.0, -0.7, 0.4),
+            DVec3::new(3.0, -1.0, 0.5),
+        );
+        // Slight timestamp jitter: association within 0.02 s must still pair them.
+        let est: Vec<_> = gt.iter().map(|(t, p)| (t + 0.004, world * *p)).collect();
+        let r = ate(&est, &gt, 0.02).expect("ate");
+        assert_eq!(r.pairs, 60);
+        assert!(r.rmse_m < 1e-9 && r.max_m < 1e-9, "{r:?}");
+        assert!(r
+            .ground_truth_from_estimate
+            .abs_diff_eq(world.inverse(), 1e-9));
+        let rpe = rpe(&est, &gt, 0.02).expect("rpe");
+        assert!(
+            rpe.translation_rmse_m < 1e-9 && rpe.rotation_rmse_rad < 1e-6,
+            "{rpe:?}"
+        );
+    }
+
+    #[test]
+    fn ate_reports_a_known_offset() {
+        // Each position appears twice, shifted by +d and -d along z: the
+        // shifts cancel in the centroid and in the cross-covariance, so the
+        // best alignment is the identity and every error is exactly d.
+        let d = 0.05;
+        let gt = trajectory(40);
+        let mut est = Vec::new();
+        let mut gt2 = Vec::new();
+        for (k, (_, p)) in gt.iter().enumerate() {
+            for (j, sign) in [1.0, -1.0].into_iter().enumerate() {
+                let t = (2 * k + j) as f64;
+                gt2.push((t, *p));
+                let mut e = *p;
+                e.translation.z += sign * d;
+                est.push((t, e));
+            }
+        }
+        let r = ate(&est, &gt2, 0.0).expect("ate");
+        assert_eq!(r.pairs, 80);
+        assert!((r.rmse_m - d).abs() < 1e-9, "{r:?}");
+        assert!((r.mean_m - d).abs() < 1e-9 && (r.median_m - d).abs() < 1e-9);
+    }
+
+    #[test]
+    fn planar_trajectory_gives_a_proper_rotation() {
+        let gt: Vec<_> = (0..10)
+            .map(|i| {
+                let a = i as f64 * 0.6;
+                (
+                    i as f64,
+                    DAffine3::from_translation(DVec3::new(a.cos(), a.sin(), 0.0)),
+                )
+            })
+            .collect();
+        let r = ate(&gt, &gt, 0.0).expect("ate");
+        assert!(r.rmse_m < 1e-9);
+        assert!((r.ground_truth_from_estimate.matrix3.determinant() - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn rpe_sees_a_rotation_jump_and_errors_are_reported() {
+        let gt = trajectory(10);
+        let mut est = gt.clone();
+        est[5].1 *= DAffine3::from_rotation_z(0.1);
+        let r = rpe(&est, &gt, 0.0).expect("rpe");
+        assert_eq!(r.pairs, 9);
+        // Two steps (4->5 and 5->6) each carry a 0.1 rad error.
+        assert!(
+            (r.rotation_rmse_rad - (2.0 * 0.01 / 9.0_f64).sqrt()).abs() < 1e-9,
+            "{r:?}"
+        );
+        assert_eq!(
+            ate(&est[..2], &gt, 0.0),
+            Err(EvalError::TooFewPairs {
+                found: 2,
+                needed: 3
+            })
+        );
+        assert_eq!(
+            rpe(&est, &gt, -1.0),
+            Err(EvalError::TooFewPairs {
+                found: 0,
+                needed: 2
+            })
+        );
+        let mut bad = gt.clone();
+        bad[0].0 = f64::NAN;
+        assert_eq!(
+            ate(&bad, &gt, 0.02),
+            Err(EvalError::NonFinite { which: "estimate" })
+        );
+    }
+}

@@ -1,0 +1,353 @@
+//! One RGB-D frame: PNG decoding from bytes, depth in metres, validation.
+//!
+//! Depth images are 16-bit integers with `depth_scale` units per metre
+//! (5000 for TUM and ICL-NUIM, 1000 for 7-Scenes); 0 (and 65535 for 7-Scenes)
+//! means "no measurement". After decoding, depth is in metres with 0 = invalid;
+//! values outside the configured range become 0. Never NaN.
+
+use image::{DynamicImage, ImageFormat};
+use thiserror::Error;
+
+/// Which image of a frame an error is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Channel {
+    /// The colour image.
+    Colour,
+    /// The depth image.
+    Depth,
+}
+
+impl std::fmt::Display for Channel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Channel::Colour => "colour",
+            Channel::Depth => "depth",
+        })
+    }
+}
+
+/// Why a frame could not be built.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum FrameError {
+    /// The bytes are not a decodable image.
+    #[error("{channel} image could not be decoded: {message}")]
+    Decode {
+        /// Colour or depth.
+        channel: Channel,
+        /// The decoder's message.
+        message: String,
+    },
+    /// The depth image is not single-channel 16-bit.
+    #[error("depth image must be a 16-bit single-channel PNG, found {found} (an 8-bit preview or colour image cannot hold depth)")]
+    DepthNot16Bit {
+        /// Description of the pixel format found.
+        found: String,
+    },
+    /// Colour and depth sizes differ.
+    #[error("colour is {colour_width}x{colour_height} but depth is {depth_width}x{depth_height}")]
+    SizeMismatch {
+        /// Colour width, pixels.
+        colour_width: usize,
+        /// Colour height, pixels.
+        colour_height: usize,
+        /// Depth width, pixels.
+        depth_width: usize,
+        /// Depth height, pixels.
+        depth_height: usize,
+    },
+    /// The frame size differs from the expected (sequence or intrinsics) size.
+    #[error("frame is {width}x{height} but the sequence is {expected_width}x{expected_height}")]
+    UnexpectedSize {
+        /// Frame width, pixels.
+        width: usize,
+        /// Frame height, pixels.
+        height: usize,
+        /// Expected width, pixels.
+        expected_width: usize,
+        /// Expected height, pixels.
+        expected_height: usize,
+    },
+    /// A raw buffer's length does not match width x height x channels.
+    #[error("{channel} buffer has {found} values, expected {expected} for the given size")]
+    BufferLength {
+        /// Colour or depth.
+        channel: Channel,
+        /// Values found.
+        found: usize,
+        /// Values expected.
+        expected: usize,
+    },
+    /// The image is empty or implausibly large.
+    #[error("image size {width}x{height} is not supported (1..=16384 per side)")]
+    BadDimensions {
+        /// Width, pixels.
+        width: usize,
+        /// Height, pixels.
+        height: usize,
+    },
+    /// The depth conversion settings are unusable.
+    #[error("invalid depth settings: {0}")]
+    DepthSettings(String),
+}
+
+/// How raw 16-bit depth values become metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthSettings {
+    /// Raw units per metre (5000 TUM/ICL-NUIM, 1000 7-Scenes).
+    pub scale: f32,
+    /// Nearest valid depth, metres.
+    pub min_m: f32,
+    /// Farthest valid depth, metres.
+    pub max_m: f32,
+    /// A raw value meaning "invalid" besides 0 (7-Scenes: 65535).
+    pub invalid_raw: Option<u16>,
+}
+
+impl Default for DepthSettings {
+    fn default() -> Self {
+        Self {
+            scale: 5000.0,
+            min_m: 0.3,
+            max_m: 4.0,
+            invalid_raw: None,
+        }
+    }
+}
+
+impl DepthSettings {
+    /// Checks scale > 0 and 0 <= min < max, all finite.
+    pub fn validate(&self) -> Result<(), FrameError> {
+        if !(self.scale.is_finite() && self.scale > 0.0) {
+            return Err(FrameError::DepthSettings(format!(
+                "depth scale must be a positive number of units per metre, got {}",
+                self.scale
+            )));
+        }
+        if !(self.min_m.is_finite() && self.max_m.is_finite() && self.min_m >= 0.0)
+            || self.min_m >= self.max_m
+        {
+            return Err(FrameError::DepthSettings(format!(
+                "depth range must satisfy 0 <= min < max, got {} .. {} m",
+                self.min_m, self.max_m
+            )));
+        }
+        Ok(())
+    }
+
+    /// Converts one raw value to metres, 0 when invalid or out of range.
+    #[inline]
+    #[must_use]
+    pub fn to_metres(&self, raw: u16) -> f32 {
+        if raw == 0 || Some(raw) == self.invalid_raw {
+            return 0.0;
+        }
+        let d = f32::from(raw) / self.scale;
+        if d >= self.min_m && d <= self.max_m {
+            d
+        } else {
+            0.0
+        }
+    }
+}
+
+/// A decoded RGB-D frame at full resolution.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RgbdFrame {
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// Colour, RGB8 interleaved, row-major (`3 * width * height` bytes).
+    pub rgb: Vec<u8>,
+    /// Depth along +z in metres, 0 = no measurement, row-major.
+    pub depth_m: Vec<f32>,
+}
+
+fn check_dimensions(width: usize, height: usize) -> Result<(), FrameError> {
+    if width == 0 || height == 0 || width > 16384 || height > 16384 {
+        return Err(FrameError::BadDimensions { width, height });
+    }
+    Ok(())
+}
+
+/// Decodes a colour image (PNG or JPEG bytes) to RGB8; returns (width, height, rgb).
+pub fn decode_colour(bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), FrameError> {
+    let img = image::load_from_memory(bytes).map_err(|e| FrameError::Decode {
+        channel: Channel::Colour,
+        message: e.to_string(),
+    })?;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    check_dimensions(w, h)?;
+    let rgb = match img {
+        DynamicImage::ImageRgb8(buf) => buf.into_raw(),
+        other => other.to_rgb8().into_raw(),
+    };
+    Ok((w, h, rgb))
+}
+
+/// Decodes a 16-bit single-channel depth PNG; returns (width, height, raw values).
+pub fn decode_depth_raw(bytes: &[u8]) -> Result<(usize, usize, Vec<u16>), FrameError> {
+    let img = image::load_from_memory_with_format(bytes, ImageFormat::Png).map_err(|e| {
+        FrameError::Decode {
+            channel: Channel::Depth,
+            message: e.to_string(),
+        }
+    })?;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    check_dimensions(w, h)?;
+    match img {
+        DynamicImage::ImageLuma16(buf) => Ok((w, h, buf.into_raw())),
+        other => Err(FrameError::DepthNot16Bit {
+            found: format!("{:?}", other.color()),
+        }),
+    }
+}
+
+impl RgbdFrame {
+    /// Decodes colour and depth image bytes into a frame.
+    pub fn from_png_bytes(
+        colour: &[u8],
+        depth: &[u8],
+        settings: &DepthSettings,
+    ) -> Result<Self, FrameError> {
+        settings.validate()?;
+        let (dw, dh, raw) = decode_depth_raw(depth)?;
+        let (cw, ch, rgb) = decode_colour(colour)?;
+        if (cw, ch) != (dw, dh) {
+            return Err(FrameError::SizeMismatch {
+                colour_width: cw,
+                colour_height: ch,
+                depth_width: dw,
+                depth_height: dh,
+            });
+        }
+        Ok(Self {
+            width: dw,
+            height: dh,
+            rgb,
+            depth_m: raw.iter().map(|&r| settings.to_metres(r)).collect(),
+        })
+    }
+
+    /// Builds a frame from raw buffers: colour RGBA8 or RGB8 (by length), depth raw u16.
+    pub fn from_raw(
+        width: usize,
+        height: usize,
+        colour: &[u8],
+        depth_raw: &[u16],
+        settings: &DepthSettings,
+    ) -> Result<Self, FrameError> {
+        settings.validate()?;
+        check_dimensions(width, height)?;
+        let n = width * height;
+        if depth_raw.len() != n {
+            return Err(FrameError::BufferLength {
+                channel: Channel::Depth,
+                found: depth_raw.len(),
+                expected: n,
+            });
+        }
+        let rgb = if colour.len() == 4 * n {
+            colour
+                .chunks_exact(4)
+                .flat_map(|p| [p[0], p[1], p[2]])
+                .collect()
+        } else if colour.len() == 3 * n {
+            colour.to_vec()
+        } else {
+            return Err(FrameError::BufferLength {
+                channel: Channel::Colour,
+                found: colour.len(),
+                expected: 4 * n,
+            });
+        };
+        Ok(Self {
+            width,
+            height,
+            rgb,
+            depth_m: depth_raw.iter().map(|&r| settings.to_metres(r)).collect(),
+        })
+    }
+
+    /// Errors unless the frame is `width` x `height`.
+    pub fn expect_size(&self, width: usize, height: usize) -> Result<(), FrameError> {
+        if (self.width, self.height) != (width, height) {
+            return Err(FrameError::UnexpectedSize {
+                width: self.width,
+                height: self.height,
+                expected_width: width,
+                expected_height: height,
+            });
+        }
+        Ok(())
+    }
+
+    /// Number of pixels with a depth measurement.
+    #[must_use]
+    pub fn valid_depth_count(&self) -> usize {
+        self.depth_m.iter().filter(|&&d| d > 0.0).count()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::{ImageBuffer, Luma, Rgb};
+
+    fn png(img: DynamicImage) -> Vec<u8> {
+        let mut out = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut out, ImageFormat::Png).expect("encode");
+        out.into_inner()
+    }
+
+    fn depth16(w: u32, h: u32, v: u16) -> Vec<u8> {
+        png(DynamicImage::ImageLuma16(ImageBuffer::from_pixel(w, h, Luma([v]))))
+    }
+
+    fn colour8(w: u32, h: u32) -> Vec<u8> {
+        png(DynamicImage::ImageRgb8(ImageBuffer::from_pixel(
+            w,
+            h,
+            Rgb([10, 20, 30]),
+        )))
+    }
+
+    #[test]
+    fn decodes_depth_in_metres() {
+        let f = RgbdFrame::from_png_bytes(&colour8(4, 3), &depth16(4, 3, 5000), &DepthSettings::default())
+            .expect("valid frame");
+        assert_eq!((f.width, f.height), (4, 3));
+        assert!(f.depth_m.iter().all(|&d| (d - 1.0).abs() < 1e-6));
+        assert_eq!(&f.rgb[..3], &[10, 20, 30]);
+    }
+
+    #[test]
+    fn rejects_8bit_depth() {
+        let d8 = png(DynamicImage::ImageLuma8(ImageBuffer::from_pixel(4, 3, Luma([7]))));
+        let err = RgbdFrame::from_png_bytes(&colour8(4, 3), &d8, &DepthSettings::default());
+        assert!(matches!(err, Err(FrameError::DepthNot16Bit { .. })), "{err:?}");
+    }
+
+    #[test]
+    fn rejects_size_mismatch_and_garbage() {
+        let err = RgbdFrame::from_png_bytes(&colour8(5, 3), &depth16(4, 3, 1), &DepthSettings::default());
+        assert!(matches!(err, Err(FrameError::SizeMismatch { .. })));
+        let err = RgbdFrame::from_png_bytes(b"not a png", &depth16(4, 3, 1), &DepthSettings::default());
+        assert!(matches!(err, Err(FrameError::Decode { channel: Channel::Colour, .. })));
+        let mut truncated = depth16(64, 64, 1000);
+        truncated.truncate(truncated.len() / 2);
+        let err = RgbdFrame::from_png_bytes(&colour8(64, 64), &truncated, &DepthSettings::default());
+        assert!(matches!(err, Err(FrameError::Decode { channel: Channel::Depth, .. })));
+    }
+
+    #[test]
+    fn out_of_range_and_invalid_raw_become_zero() {
+        let s = DepthSettings { scale: 1000.0, min_m: 0.3, max_m: 4.0, invalid_raw: Some(65535) };
+        assert_eq!(s.to_metres(65535), 0.0);
+        assert_eq!(s.to_metres(100), 0.0);
+        assert_eq!(s.to_metres(5000), 0.0);
+        assert!((s.to_metres(1500) - 1.5).abs() < 1e-6);
+        let bad = DepthSettings { scale: 0.0, ..s };
+        assert!(bad.validate().is_err());
+    }
+}

@@ -1,0 +1,61 @@
+//! Point-based fusion (Keller et al. 2013): associate each input pixel with
+//! the model through a super-sampled index map, merge or add, remove
+//! unstable surfels, and predict the model for the next frame's tracker.
+//!
+//! All surfel attributes are in the world frame, metres.
+
+mod cleanup;
+pub mod index_map;
+mod integrate;
+pub mod predict;
+mod surfel_map;
+
+pub use cleanup::remove_unstable;
+pub use integrate::{FusionStats, Integrator};
+pub use predict::Prediction;
+pub use surfel_map::SurfelMap;
+
+/// Settings of the fusion stage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FusionConfig {
+    /// Largest depth difference (m, along the camera's z) for a merge.
+    pub depth_gate_m: f32,
+    /// Largest angle between normals for a merge, degrees.
+    pub normal_gate_deg: f32,
+    /// Sigma of the radial confidence weight `exp(-gamma^2 / (2 sigma^2))`.
+    pub confidence_sigma: f32,
+    /// Confidence at which a surfel becomes stable (used for prediction).
+    pub stable_confidence: f32,
+    /// Unstable surfels older than this many frames are removed.
+    pub unstable_max_age: u32,
+    /// During the first frames all surfels are predicted, stable or not.
+    pub warmup_frames: u32,
+    /// Index-map cells per pixel side (4 = Keller's 4x4).
+    pub index_supersampling: usize,
+    /// Cap on a surfel's radius, metres.
+    pub max_radius_m: f32,
+}
+
+impl Default for FusionConfig {
+    fn default() -> Self {
+        Self {
+            depth_gate_m: 0.05,
+            normal_gate_deg: 20.0,
+            confidence_sigma: 0.6,
+            stable_confidence: 10.0,
+            unstable_max_age: 20,
+            warmup_frames: 10,
+            index_supersampling: 4,
+            max_radius_m: 0.05,
+        }
+    }
+}
+
+impl FusionConfig {
+    /// Whether surfel `i` takes part in the prediction at frame `frame`.
+    #[inline]
+    #[must_use]
+    pub fn predicts(&self, map: &SurfelMap, i: usize, frame: u32) -> bool {
+        frame < self.warmup_frames || map.confidences[i] >= self.stable_confidence
+    }
+}

@@ -1,0 +1,79 @@
+//! Model prediction: the stable surfels rendered into a camera pose, giving
+//! per-pixel vertex, normal and colour maps (world frame) that the next
+//! frame's tracker aligns against (frame-to-model tracking).
+
+use crate::camera::Intrinsics;
+use crate::fusion::index_map::{IndexMap, RigidF32};
+use crate::fusion::SurfelMap;
+use glam::{DAffine3, Vec3};
+use rayon::prelude::*;
+
+/// Per-pixel maps of the model seen from `world_from_camera`, full resolution.
+#[derive(Debug, Default)]
+pub struct Prediction {
+    /// Pose the model was rendered from.
+    pub world_from_camera: DAffine3,
+    /// Intrinsics of the rendered view.
+    pub intrinsics: Option<Intrinsics>,
+    /// Surfel centres, world frame, metres; `ZERO` where no surfel.
+    pub vertices: Vec<Vec3>,
+    /// Surfel normals, world frame; `ZERO` where no surfel.
+    pub normals: Vec<Vec3>,
+    /// Surfel grey level in 0..255 (0 where no surfel).
+    pub intensity: Vec<f32>,
+    /// Number of pixels holding a surfel.
+    pub valid: usize,
+    index: IndexMap,
+}
+
+impl Prediction {
+    /// Renders the surfels selected by `include` into the view `world_from_camera`.
+    pub fn render(
+        &mut self,
+        map: &SurfelMap,
+        world_from_camera: &DAffine3,
+        k: &Intrinsics,
+        include: impl Fn(usize) -> bool + Sync,
+    ) {
+        let n = k.pixel_count();
+        self.vertices.resize(n, Vec3::ZERO);
+        self.normals.resize(n, Vec3::ZERO);
+        self.intensity.resize(n, 0.0);
+        self.index.resize(k, 1);
+        self.world_from_camera = *world_from_camera;
+        self.intrinsics = Some(*k);
+        let camera_from_world = RigidF32::from_affine(&world_from_camera.inverse());
+        self.index.render(map, &camera_from_world, k, true, include);
+        let w = k.width;
+        let index = &self.index;
+        self.valid = self
+            .vertices
+            .par_chunks_mut(w)
+            .zip(self.normals.par_chunks_mut(w))
+            .zip(self.intensity.par_chunks_mut(w))
+            .enumerate()
+            .map(|(v, ((vr, nr), ir))| {
+                let mut count = 0;
+                for u in 0..w {
+                    match index.surfel_at(u, v) {
+                        Some(i) => {
+                            vr[u] = map.positions[i];
+                            nr[u] = map.normals[i];
+                            let c = map.colours[i];
+                            ir[u] = 0.299 * f32::from(c[0])
+                                + 0.587 * f32::from(c[1])
+                                + 0.114 * f32::from(c[2]);
+                            count += 1;
+                        }
+                        None => {
+                            vr[u] = Vec3::ZERO;
+                            nr[u] = Vec3::ZERO;
+                            ir[u] = 0.0;
+                        }
+                    }
+                }
+                count
+            })
+            .sum();
+    }
+}

@@ -1,0 +1,145 @@
+//! The surfel map: structure-of-arrays storage of all surfels, in world frame.
+//!
+//! Each attribute is one contiguous array so that the renderer can upload it
+//! to the GPU as is (positions and normals are tightly packed `[f32; 3]`,
+//! colours `[u8; 4]` RGBA with A = 255) and per-surfel loops vectorise.
+
+use glam::Vec3;
+
+/// All surfels of the model, structure of arrays; index `i` is one surfel.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SurfelMap {
+    /// Centre of each surfel, world frame, metres.
+    pub positions: Vec<Vec3>,
+    /// Unit normal of each surfel, world frame, pointing towards the cameras that saw it.
+    pub normals: Vec<Vec3>,
+    /// Colour, RGBA8 (A = 255).
+    pub colours: Vec<[u8; 4]>,
+    /// Disk radius, metres.
+    pub radii: Vec<f32>,
+    /// Accumulated confidence (sum of the radial weights of merged measurements).
+    pub confidences: Vec<f32>,
+    /// Frame index at which the surfel was created.
+    pub first_seen: Vec<u32>,
+    /// Frame index of the last merge.
+    pub last_seen: Vec<u32>,
+    /// Lowest index changed since the last `take_changed_range`.
+    change_lo: usize,
+    /// One past the highest index changed since the last `take_changed_range`.
+    change_hi: usize,
+}
+
+impl SurfelMap {
+    /// Number of surfels.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// True when the map holds no surfel.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Records that surfel `i` was modified (for incremental GPU uploads).
+    #[inline]
+    pub fn mark_changed(&mut self, i: usize) {
+        if self.change_lo >= self.change_hi {
+            self.change_lo = i;
+            self.change_hi = i + 1;
+        } else {
+            self.change_lo = self.change_lo.min(i);
+            self.change_hi = self.change_hi.max(i + 1);
+        }
+    }
+
+    /// The index range whose surfels were added, merged or moved since the last
+    /// call, clamped to the current length, and resets it. A renderer that
+    /// re-uploads this range (and draws `len()` surfels) stays in sync.
+    pub fn take_changed_range(&mut self) -> std::ops::Range<usize> {
+        let hi = self.change_hi.min(self.len());
+        let lo = self.change_lo.min(hi);
+        self.change_lo = 0;
+        self.change_hi = 0;
+        lo..hi
+    }
+
+    /// Removes every surfel, keeping the allocations.
+    pub fn clear(&mut self) {
+        self.change_lo = 0;
+        self.change_hi = 0;
+        self.positions.clear();
+        self.normals.clear();
+        self.colours.clear();
+        self.radii.clear();
+        self.confidences.clear();
+        self.first_seen.clear();
+        self.last_seen.clear();
+    }
+
+    /// Appends one surfel.
+    #[allow(clippy::too_many_arguments)]
+    pub fn push(
+        &mut self,
+        position: Vec3,
+        normal: Vec3,
+        colour: [u8; 4],
+        radius: f32,
+        confidence: f32,
+        frame: u32,
+    ) {
+        self.positions.push(position);
+        self.normals.push(normal);
+        self.colours.push(colour);
+        self.radii.push(radius);
+        self.confidences.push(confidence);
+        self.first_seen.push(frame);
+        self.last_seen.push(frame);
+        self.mark_changed(self.positions.len() - 1);
+    }
+
+    /// Keeps only the surfels for which `keep(i)` is true, preserving order.
+    pub fn retain_indices(&mut self, mut keep: impl FnMut(usize) -> bool) {
+        let len = self.len();
+        let mut write = 0;
+        let mut first_removed = None;
+        for read in 0..len {
+            if !keep(read) {
+                first_removed.get_or_insert(read);
+                continue;
+            }
+            if write != read {
+                self.positions[write] = self.positions[read];
+                self.normals[write] = self.normals[read];
+                self.colours[write] = self.colours[read];
+                self.radii[write] = self.radii[read];
+                self.confidences[write] = self.confidences[read];
+                self.first_seen[write] = self.first_seen[read];
+                self.last_seen[write] = self.last_seen[read];
+            }
+            write += 1;
+        }
+        if let Some(first) = first_removed {
+            // Every slot from the first removed one on now holds another surfel.
+            self.mark_changed(first);
+            self.mark_changed(len.saturating_sub(1));
+        }
+        self.positions.truncate(write);
+        self.normals.truncate(write);
+        self.colours.truncate(write);
+        self.radii.truncate(write);
+        self.confidences.truncate(write);
+        self.first_seen.truncate(write);
+        self.last_seen.truncate(write);
+    }
+
+    /// True when every stored value is finite (no NaN or infinity anywhere).
+    #[must_use]
+    pub fn all_finite(&self) -> bool {
+        self.positions.iter().all(|p| p.is_finite())
+            && self.normals.iter().all(|n| n.is_finite())
+            && self.radii.iter().all(|r| r.is_finite())
+            && self.confidences.iter().all(|c| c.is_finite())
+    }
+}

@@ -1,0 +1,26 @@
+//! surfel-slam: dense RGB-D SLAM with point-based (surfel) fusion.
+//!
+//! The whole algorithm lives in this crate; the CLI (`src/bin`), the wasm
+//! bindings (`wasm`) and the browser page are thin shells over [`Pipeline`].
+//!
+//! Conventions: camera frame +x right, +y down, +z forward; metres; poses
+//! named for what they map (`world_from_camera`); depth 0 = no measurement.
+
+pub mod camera;
+pub mod clock;
+pub mod dataset;
+pub mod eval;
+pub mod frame;
+pub mod fusion;
+pub mod pipeline;
+pub mod preprocess;
+pub mod se3;
+pub mod synthetic;
+pub mod track;
+#[cfg(target_arch = "wasm32")]
+pub mod wasm;
+
+pub use camera::{CameraPreset, Intrinsics};
+pub use frame::{DepthSettings, FrameError, RgbdFrame};
+pub use fusion::SurfelMap;
+pub use pipeline::{FrameReport, Pipeline, PipelineError, SlamConfig, Verdict};

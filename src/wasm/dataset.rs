@@ -1,0 +1,137 @@
+//! Dataset layouts and trajectory evaluation for JavaScript: the same parsers
+//! as the native CLI (`crate::dataset`, `crate::eval`), on file names and
+//! texts the page (or a Node script) has read.
+
+use std::collections::HashMap;
+
+use js_sys::{Array, Reflect};
+use wasm_bindgen::prelude::*;
+
+use super::convert::{kind_name, object, strings_from_js, tum_row};
+use crate::dataset::{self, trajectory::parse_tum};
+use crate::eval;
+
+/// `detectLayout(fileNames)`: recognises the dataset layout from relative
+/// file names (e.g. `webkitRelativePath`). Returns `{ kind, indexFiles,
+/// rootPrefix }` with kind `'tum' | 'icl-nuim' | '7-scenes'`; throws if the
+/// layout is not recognised.
+#[wasm_bindgen(js_name = detectLayout)]
+pub fn detect_layout(file_names: JsValue) -> Result<JsValue, JsError> {
+    let names = strings_from_js(&file_names, "fileNames").map_err(|m| JsError::new(&m))?;
+    let layout = dataset::detect_layout(&names).map_err(|e| JsError::new(&e.to_string()))?;
+    let index_files: Array = layout
+        .index_files
+        .iter()
+        .map(|f| JsValue::from_str(f))
+        .collect();
+    Ok(object(&[
+        ("kind", kind_name(layout.kind).into()),
+        ("indexFiles", index_files.into()),
+        ("rootPrefix", layout.root_prefix.as_str().into()),
+    ])
+    .into())
+}
+
+/// `parseSequence(fileNames, indexTexts, nameHint)`: the frame list and the
+/// ground truth. `indexTexts` maps each of `detectLayout(...).indexFiles` to
+/// its text. Returns `{ kind, preset, frames: [{index, timestamp, colour,
+/// depth, poseFile}], groundTruth: [[t, tx, ty, tz, qx, qy, qz, qw], ...],
+/// groundTruthTum }` (paths as in `fileNames`; `groundTruthTum` is the ground
+/// truth as TUM text, `''` when there is none).
+#[wasm_bindgen(js_name = parseSequence)]
+pub fn parse_sequence(
+    file_names: JsValue,
+    index_texts: JsValue,
+    name_hint: JsValue,
+) -> Result<JsValue, JsError> {
+    let name_hint = name_hint.as_string();
+    let names = strings_from_js(&file_names, "fileNames").map_err(|m| JsError::new(&m))?;
+    let layout = dataset::detect_layout(&names).map_err(|e| JsError::new(&e.to_string()))?;
+    if !index_texts.is_object() {
+        return Err(JsError::new(
+            "indexTexts must be an object mapping each index file name to its text",
+        ));
+    }
+    let mut texts = HashMap::new();
+    for name in &layout.index_files {
+        let value = Reflect::get(&index_texts, &JsValue::from_str(name)).unwrap_or_default();
+        if let Some(text) = value.as_string() {
+            texts.insert(name.clone(), text);
+        } else if !value.is_undefined() && !value.is_null() {
+            return Err(JsError::new(&format!(
+                "indexTexts[{name:?}] must be the file's text (a string)"
+            )));
+        }
+        // Absent: parse_sequence reports the missing file by name.
+    }
+    let seq = dataset::parse_sequence(&layout, &names, &texts, name_hint.as_deref())
+        .map_err(|e| JsError::new(&e.to_string()))?;
+
+    let frames: Array = seq
+        .frames
+        .iter()
+        .map(|f| -> JsValue {
+            object(&[
+                ("index", (f.index as f64).into()),
+                ("timestamp", f.timestamp.into()),
+                ("colour", f.colour.as_str().into()),
+                ("depth", f.depth.as_str().into()),
+                (
+                    "poseFile",
+                    f.pose_file
+                        .as_deref()
+                        .map_or(JsValue::NULL, JsValue::from_str),
+                ),
+            ])
+            .into()
+        })
+        .collect();
+    let ground_truth: Array = seq
+        .ground_truth
+        .iter()
+        .map(|(t, pose)| tum_row(*t, pose))
+        .collect();
+    let ground_truth_tum = if seq.ground_truth.is_empty() {
+        String::new()
+    } else {
+        dataset::trajectory::format_tum(&seq.ground_truth)
+    };
+    Ok(object(&[
+        ("kind", kind_name(seq.kind).into()),
+        ("preset", seq.preset.name().into()),
+        ("frames", frames.into()),
+        ("groundTruth", ground_truth.into()),
+        ("groundTruthTum", ground_truth_tum.into()),
+    ])
+    .into())
+}
+
+/// `ateTum(estimateTum, groundTruthTum, maxDt = 0.02)`: absolute trajectory
+/// error after rigid alignment, metres: `{ rmse, mean, median, max, pairs }`.
+/// Poses are matched by nearest timestamp within `maxDt` (seconds for TUM;
+/// ICL-NUIM and 7-Scenes frame numbers match exactly).
+#[wasm_bindgen(js_name = ateTum)]
+pub fn ate_tum(
+    estimate_tum: &str,
+    ground_truth_tum: &str,
+    max_dt: Option<f64>,
+) -> Result<JsValue, JsError> {
+    let max_dt = max_dt.unwrap_or(0.02);
+    if !(max_dt.is_finite() && max_dt >= 0.0) {
+        return Err(JsError::new(&format!(
+            "maxDt must be a non-negative number of seconds, got {max_dt}"
+        )));
+    }
+    let estimate = parse_tum(estimate_tum, "estimate").map_err(|e| JsError::new(&e.to_string()))?;
+    let truth =
+        parse_tum(ground_truth_tum, "ground truth").map_err(|e| JsError::new(&e.to_string()))?;
+    let r = eval::ate(&estimate, &truth, max_dt).map_err(|e| JsError::new(&e.to_string()))?;
+    Ok(object(&[
+        ("rmse", r.rmse_m.into()),
+        ("mean", r.mean_m.into()),
+        ("median", r.median_m.into()),
+        ("max", r.max_m.into()),
+        ("pairs", (r.pairs as f64).into()),
+    ])
+    .into())
+}

@@ -1,0 +1,55 @@
+//! JavaScript bindings (wasm-bindgen): a thin shell over [`crate::Pipeline`]
+//! and the dataset / evaluation functions. No algorithm lives here.
+//!
+//! The contract with the page is `docs/js-api.md`; names here follow it
+//! exactly (`Slam`, `pushFrame`, `positions`, `detectLayout`, ...).
+//!
+//! - [`slam`]: the `Slam` class (frames in, reports and zero-copy surfel views out).
+//! - [`dataset`]: `detectLayout`, `parseSequence`, `ateTum` (the CLI's parsers).
+//! - [`convert`]: JS object <-> config / report conversions, with errors that
+//!   name the offending field.
+//!
+//! Errors are `JsError`s carrying the library error's `Display` message; a
+//! panic would be a bug, and the panic hook installed at start makes it at
+//! least readable in the console.
+
+pub mod convert;
+pub mod dataset;
+pub mod slam;
+
+use wasm_bindgen::prelude::*;
+
+pub use dataset::{ate_tum, detect_layout, parse_sequence};
+pub use slam::Slam;
+
+/// Threaded build only: `await initThreadPool(n)` starts `n` web workers
+/// sharing this module's memory; rayon then runs on them. Needs a
+/// cross-origin isolated page (COOP/COEP headers).
+#[cfg(feature = "threads")]
+pub use wasm_bindgen_rayon::init_thread_pool;
+
+/// Runs once when the module is instantiated (and once per worker in the
+/// threaded build): readable panic messages in the console.
+#[wasm_bindgen(start)]
+pub fn start() {
+    console_error_panic_hook::set_once();
+}
+
+/// Rayon threads in use: 1 in the single-threaded build, the pool size after
+/// `initThreadPool` in the threaded one.
+#[wasm_bindgen(js_name = threadCount)]
+#[must_use]
+pub fn thread_count() -> u32 {
+    u32::try_from(rayon::current_num_threads()).unwrap_or(u32::MAX)
+}
+
+/// The camera presets with their intrinsics and depth settings:
+/// `[{name, fx, fy, cx, cy, width, height, depthScale, depthMin, depthMax}, ...]`.
+#[wasm_bindgen]
+#[must_use]
+pub fn presets() -> js_sys::Array {
+    crate::CameraPreset::ALL
+        .into_iter()
+        .map(convert::preset_to_js)
+        .collect()
+}

@@ -1,0 +1,214 @@
+//! The `Slam` class: one [`Pipeline`] driven from JavaScript.
+//!
+//! Frames go in as PNG bytes (decoded inside wasm) or raw buffers; each push
+//! returns a report object. The surfel map comes out as zero-copy typed-array
+//! views into wasm memory (see [`Slam::positions`] for when they are valid).
+
+use glam::Vec3;
+use js_sys::{Array, Float32Array, Uint8Array};
+use wasm_bindgen::prelude::*;
+
+use super::convert::{report_to_js, slam_config_from_js};
+use crate::dataset::{ply::write_ply, trajectory::format_tum};
+use crate::frame::RgbdFrame;
+use crate::pipeline::{Pipeline, PipelineError};
+
+/// Dense RGB-D SLAM: camera trajectory and surfel map from RGB-D frames.
+#[wasm_bindgen]
+#[derive(Debug)]
+pub struct Slam {
+    pipeline: Pipeline,
+}
+
+fn js_error(e: &PipelineError) -> JsError {
+    JsError::new(&e.to_string())
+}
+
+fn check_timestamp(timestamp: f64) -> Result<(), JsError> {
+    if timestamp.is_finite() {
+        Ok(())
+    } else {
+        Err(JsError::new(&format!(
+            "timestamp must be a finite number, got {timestamp}"
+        )))
+    }
+}
+
+// `Vec3` is `#[repr(C)] { x, y, z: f32 }`: a `[Vec3]` is a `[f32]` three times
+// as long. Checked at compile time.
+const _: () = assert!(
+    std::mem::size_of::<Vec3>() == 12 && std::mem::align_of::<Vec3>() == 4,
+    "glam::Vec3 must be three packed f32"
+);
+
+fn flatten_vec3(v: &[Vec3]) -> &[f32] {
+    // SAFETY: Vec3 is repr(C) with three f32 fields and no padding (asserted
+    // above), so `len` Vec3s are `3 * len` initialised, aligned f32s; the
+    // returned slice borrows `v`.
+    unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<f32>(), v.len() * 3) }
+}
+
+// Zero-copy views. `Float32Array::view` / `Uint8Array::view` are unsafe
+// because the JS array aliases Rust-owned memory without a Rust borrow. It is
+// sound here because:
+// - wasm is single-threaded per instance as far as this object is concerned
+//   (in the threaded build rayon workers only run inside a call), and no Rust
+//   code touches the map again until the next call into the module;
+// - the only ways the view can become stale are a call that mutates or
+//   reallocates the map (pushFrame, pushRaw, reset, free) or grows the
+//   memory; growing detaches the old ArrayBuffer (JS then sees length 0,
+//   never freed memory), and a reallocation inside the same memory leaves
+//   the view pointing at bytes that are still wasm memory (stale values,
+//   not undefined behaviour in Rust, which holds no reference across calls).
+// The JS contract (docs/js-api.md) therefore says: views are valid until the
+// next call into the module; re-take them after every push.
+fn f32_view(data: &[f32]) -> Float32Array {
+    // SAFETY: see the comment above.
+    unsafe { Float32Array::view(data) }
+}
+
+fn u8_view(data: &[u8]) -> Uint8Array {
+    // SAFETY: see the comment above.
+    unsafe { Uint8Array::view(data) }
+}
+
+#[wasm_bindgen]
+impl Slam {
+    /// `new Slam(config)`: config is `{ preset, fx, fy, cx, cy, width, height,
+    /// depthScale, depthMin, depthMax, ... }` (fields override the preset) or
+    /// a preset name. Throws an Error naming the problem on a bad config.
+    #[wasm_bindgen(constructor)]
+    pub fn new(config: JsValue) -> Result<Slam, JsError> {
+        let cfg = slam_config_from_js(&config).map_err(|m| JsError::new(&m))?;
+        let pipeline = Pipeline::new(cfg).map_err(|e| js_error(&e))?;
+        Ok(Slam { pipeline })
+    }
+
+    /// Decodes a colour image (PNG or JPEG) and a 16-bit depth PNG and
+    /// processes the frame. Throws (and changes nothing) on bad bytes.
+    #[wasm_bindgen(js_name = pushFrame)]
+    pub fn push_frame(
+        &mut self,
+        colour: &[u8],
+        depth: &[u8],
+        timestamp: f64,
+    ) -> Result<JsValue, JsError> {
+        check_timestamp(timestamp)?;
+        let report = self
+            .pipeline
+            .push_png(colour, depth, timestamp)
+            .map_err(|e| js_error(&e))?;
+        Ok(report_to_js(&report))
+    }
+
+    /// Processes a decoded frame: `rgba` is RGBA8 (or RGB8) row-major,
+    /// `depth` raw units (`depthScale` per metre, 0 = none). Throws (and
+    /// changes nothing) on wrong sizes.
+    #[wasm_bindgen(js_name = pushRaw)]
+    pub fn push_raw(
+        &mut self,
+        width: u32,
+        height: u32,
+        rgba: &[u8],
+        depth: &[u16],
+        timestamp: f64,
+    ) -> Result<JsValue, JsError> {
+        check_timestamp(timestamp)?;
+        let settings = self.pipeline.config().depth;
+        let frame = RgbdFrame::from_raw(width as usize, height as usize, rgba, depth, &settings)
+            .map_err(|e| js_error(&e.into()))?;
+        let report = self
+            .pipeline
+            .push_frame(&frame, timestamp)
+            .map_err(|e| js_error(&e))?;
+        Ok(report_to_js(&report))
+    }
+
+    /// Number of surfels in the map.
+    #[wasm_bindgen(getter, js_name = surfelCount)]
+    #[must_use]
+    pub fn surfel_count(&self) -> u32 {
+        u32::try_from(self.pipeline.map().len()).unwrap_or(u32::MAX)
+    }
+
+    /// Frames pushed (accepted) since creation or the last reset.
+    #[wasm_bindgen(getter)]
+    #[must_use]
+    pub fn frames(&self) -> u32 {
+        self.pipeline.frames()
+    }
+
+    /// Surfel centres, `3 * surfelCount` floats, world frame, metres.
+    /// Zero-copy view: valid until the next call into the module.
+    #[must_use]
+    pub fn positions(&self) -> Float32Array {
+        f32_view(flatten_vec3(&self.pipeline.map().positions))
+    }
+
+    /// Surfel unit normals, `3 * surfelCount` floats, world frame.
+    /// Zero-copy view: valid until the next call into the module.
+    #[must_use]
+    pub fn normals(&self) -> Float32Array {
+        f32_view(flatten_vec3(&self.pipeline.map().normals))
+    }
+
+    /// Surfel colours, `4 * surfelCount` bytes, RGBA.
+    /// Zero-copy view: valid until the next call into the module.
+    #[must_use]
+    pub fn colours(&self) -> Uint8Array {
+        u8_view(self.pipeline.map().colours.as_flattened())
+    }
+
+    /// Surfel radii, `surfelCount` floats, metres.
+    /// Zero-copy view: valid until the next call into the module.
+    #[must_use]
+    pub fn radii(&self) -> Float32Array {
+        f32_view(&self.pipeline.map().radii)
+    }
+
+    /// Surfel confidences, `surfelCount` floats.
+    /// Zero-copy view: valid until the next call into the module.
+    #[must_use]
+    pub fn confidences(&self) -> Float32Array {
+        f32_view(&self.pipeline.map().confidences)
+    }
+
+    /// `[start, end]`: surfel indices added, merged or moved since the last
+    /// call (re-upload this range and draw `surfelCount` surfels).
+    #[wasm_bindgen(js_name = takeChangedRange)]
+    pub fn take_changed_range(&mut self) -> Array {
+        let range = self.pipeline.take_changed_range();
+        Array::of2(
+            &JsValue::from_f64(range.start as f64),
+            &JsValue::from_f64(range.end as f64),
+        )
+    }
+
+    /// The trajectory so far as TUM lines `timestamp tx ty tz qx qy qz qw`
+    /// (camera to world), with a `#` header line.
+    #[wasm_bindgen(js_name = trajectoryTum)]
+    #[must_use]
+    pub fn trajectory_tum(&self) -> String {
+        format_tum(self.pipeline.trajectory())
+    }
+
+    /// The surfel map as a binary little-endian PLY file.
+    #[wasm_bindgen(js_name = exportPly)]
+    #[must_use]
+    pub fn export_ply(&self) -> Vec<u8> {
+        write_ply(self.pipeline.map())
+    }
+
+    /// Forgets the map and the trajectory; keeps the configuration.
+    pub fn reset(&mut self) {
+        self.pipeline.reset();
+    }
+}
+
+impl Slam {
+    /// The pipeline, for Rust callers (tests).
+    #[must_use]
+    pub fn pipeline(&self) -> &Pipeline {
+        &self.pipeline
+    }
+}

@@ -1,0 +1,147 @@
+// Folder upload through the file input, and the error cases: a sequence with
+// an 8-bit depth PNG and a corrupt colour PNG, then a folder that is no
+// dataset at all. The page must say what is wrong (naming the file), keep the
+// map, and stay alive.
+import { test } from 'node:test';
+import assert from 'node:assert/strict';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import {
+  REPO,
+  SHARED_DATA,
+  startBrowser,
+  openPage,
+  waitForStatus,
+  foreignRequests,
+  encodeGreyPng,
+  makeTumClip,
+  saveScreenshot,
+  missingPrerequisite,
+} from './helpers.mjs';
+
+const ICL = path.join(SHARED_DATA, 'icl_office_kt0');
+const ICL_FRAMES = 15;
+
+/** An ICL-NUIM folder with the first `n` frames (index files trimmed, images copied). */
+function makeIclClip(n) {
+  const parent = fs.mkdtempSync(path.join(os.tmpdir(), 'surfel-slam-icl-'));
+  const dir = path.join(parent, 'icl_office_kt0_first15');
+  fs.mkdirSync(path.join(dir, 'rgb'), { recursive: true });
+  fs.mkdirSync(path.join(dir, 'depth'), { recursive: true });
+  const assoc = fs.readFileSync(path.join(ICL, 'associations.txt'), 'utf8').split('\n').filter((l) => l.trim());
+  const kept = assoc.slice(0, n);
+  fs.writeFileSync(path.join(dir, 'associations.txt'), kept.join('\n') + '\n');
+  const numbers = new Set(kept.map((l) => l.split(/\s+/)[0]));
+  const gt = fs.readFileSync(path.join(ICL, 'traj0.gt.freiburg'), 'utf8').split('\n');
+  fs.writeFileSync(path.join(dir, 'traj0.gt.freiburg'), gt.filter((l) => numbers.has(l.split(/\s+/)[0])).join('\n') + '\n');
+  for (const line of kept) {
+    const [, depth, , rgb] = line.split(/\s+/);
+    fs.copyFileSync(path.join(ICL, depth), path.join(dir, depth));
+    fs.copyFileSync(path.join(ICL, rgb), path.join(dir, rgb));
+  }
+  return { parent, dir };
+}
+
+const chooseFolder = (page, dir) => page.locator('#folder-input').setInputFiles(dir);
+
+test('a folder uploaded through the file input is tracked and fused', { timeout: 300_000 }, async (t) => {
+  const missing = missingPrerequisite();
+  if (missing) return t.skip(missing);
+  if (!fs.existsSync(ICL)) return t.skip(`${ICL} is absent (needs ../shared/data beside the checkout)`);
+  const clip = makeIclClip(ICL_FRAMES);
+  const env = await startBrowser();
+  try {
+    const { page, requests } = await openPage(env, '/?sample=0');
+    await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
+    await chooseFolder(page, clip.dir);
+    const status = await waitForStatus(page, (s) => s.done || s.framesProcessed >= ICL_FRAMES, {
+      timeoutMs: 240_000,
+      log: (m) => t.diagnostic(m),
+    });
+    t.diagnostic(
+      `ICL-NUIM upload: ${status.framesProcessed} frames, ${status.surfels} surfels, lost ${status.framesLost}, ` +
+        `fps ${status.fpsAverage}, ATE ${status.ate === null ? '-' : (status.ate * 100).toFixed(1) + ' cm'}`,
+    );
+    await page.waitForTimeout(300);
+    saveScreenshot('upload-icl-page.png', await page.screenshot());
+    assert.equal(status.error, null, `the page reported an error: ${status.error}`);
+    assert.equal(status.sequenceKind, 'icl-nuim');
+    assert.equal(status.frameCount, ICL_FRAMES);
+    assert.ok(status.framesProcessed >= ICL_FRAMES, `frames processed ${status.framesProcessed}`);
+    assert.ok(status.framesLost <= 1, `lost ${status.framesLost}`);
+    assert.ok(status.surfels > 10_000, `surfels ${status.surfels}`);
+    assert.ok(Number.isFinite(status.ate), 'ATE computed from the folder ground truth');
+    const info = await page.locator('#sequence-info').textContent();
+    assert.match(info, /icl_office_kt0_first15/);
+    const foreign = foreignRequests(requests, env.origin);
+    assert.deepEqual(foreign, [], `requests outside ${env.origin}: ${foreign.join(', ')}`);
+  } finally {
+    await env.close();
+    fs.rmSync(clip.parent, { recursive: true, force: true });
+  }
+});
+
+test('bad frames and bad folders give a clear message and keep the map', { timeout: 300_000 }, async (t) => {
+  const missing = missingPrerequisite();
+  if (missing) return t.skip(missing);
+  // The bundled sample is part of the repo, so this test never needs ../shared.
+  const clip = makeTumClip(path.join(REPO, 'www/sample/tum_fr3_teddy_clip'), 6, 'rgbd_dataset_freiburg3_broken');
+  const badDepth = clip.depth[1]; // second frame: 8-bit depth
+  fs.writeFileSync(path.join(clip.dir, badDepth), encodeGreyPng(640, 480, Buffer.alloc(640 * 480, 77)));
+  const badColour = clip.colour[3]; // fourth frame: garbage bytes
+  fs.writeFileSync(path.join(clip.dir, badColour), Buffer.from('this is not a PNG file at all'.repeat(50)));
+  const notADataset = fs.mkdtempSync(path.join(os.tmpdir(), 'surfel-slam-junk-'));
+  fs.mkdirSync(path.join(notADataset, 'holiday_photos'));
+  fs.writeFileSync(path.join(notADataset, 'holiday_photos', 'notes.txt'), 'nothing to see\n');
+  fs.writeFileSync(path.join(notADataset, 'holiday_photos', 'beach.jpg'), 'not really a jpeg');
+
+  const env = await startBrowser();
+  try {
+    const { page, requests } = await openPage(env, '/?sample=0');
+    await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
+    await chooseFolder(page, clip.dir);
+    let status = await waitForStatus(page, (s) => s.done && !s.playing, { timeoutMs: 240_000 });
+    t.diagnostic(`errors: ${JSON.stringify(status.errors)}`);
+    const message = await page.locator('#message-text').textContent();
+    saveScreenshot('error-page.png', await page.screenshot());
+
+    assert.ok(status.error, 'status.error is set');
+    const depthName = path.basename(badDepth);
+    const colourName = path.basename(badColour);
+    assert.ok(
+      status.errors.some((e) => e.includes(depthName)),
+      `an error names the 8-bit depth file ${depthName}: ${JSON.stringify(status.errors)}`,
+    );
+    assert.ok(
+      status.errors.some((e) => e.includes(colourName)),
+      `an error names the corrupt colour file ${colourName}: ${JSON.stringify(status.errors)}`,
+    );
+    assert.ok(await page.locator('#message').isVisible(), 'the message is shown on the page');
+    assert.ok(message.includes(colourName) || message.includes(depthName), `page message names the file: ${message}`);
+    assert.equal(status.framesFailed, 2, 'exactly the two bad frames were skipped');
+    assert.equal(status.framesProcessed, 4, 'the four good frames were processed');
+    assert.ok(status.surfels > 0, `the map is kept (${status.surfels} surfels)`);
+    const surfelsBefore = status.surfels;
+
+    // A folder that is no dataset: message, map kept, page alive.
+    await chooseFolder(page, path.join(notADataset, 'holiday_photos'));
+    status = await waitForStatus(page, (s) => /unrecognised|holiday_photos/i.test(s.error ?? ''), { timeoutMs: 30_000 });
+    t.diagnostic(`unrecognised folder: ${status.error}`);
+    assert.match(status.error ?? '', /holiday_photos/);
+    assert.match(status.error ?? '', /unrecognised/i);
+    assert.equal(status.surfels, surfelsBefore, 'the map is kept');
+    assert.equal(status.sequence, 'rgbd_dataset_freiburg3_broken', 'the previous sequence stays loaded');
+
+    const foreign = foreignRequests(requests, env.origin);
+    assert.deepEqual(foreign, [], `requests outside ${env.origin}: ${foreign.join(', ')}`);
+    // The page is alive: the bundled sample can still be started.
+    await page.locator('#sample-button').click();
+    status = await waitForStatus(page, (s) => s.sequence === 'tum_fr3_teddy_clip' && s.framesProcessed >= 1, { timeoutMs: 60_000 });
+    assert.ok(status.framesProcessed >= 1, 'a new sequence runs after the errors');
+  } finally {
+    await env.close();
+    fs.rmSync(clip.parent, { recursive: true, force: true });
+    fs.rmSync(notADataset, { recursive: true, force: true });
+  }
+});

@@ -1,0 +1,183 @@
+//! Shared by `tests/wasm_parity_native.rs` (native) and `tests/wasm_node.rs`
+//! (wasm32 under Node): the deterministic computations both run, and the
+//! reference files through which they are compared.
+//!
+//! How native and wasm results are compared (no hard-coded numbers):
+//! 1. the native test `wasm_parity_native` runs a computation on a
+//!    single-thread rayon pool (so the float reduction order is the one the
+//!    single-threaded wasm module uses) and writes the poses as TUM text to
+//!    `target/wasm-parity/<name>.tum`, with a fingerprint of the sources
+//!    (`src/**`, `tests/wasm_common/**`, `Cargo.toml`, `Cargo.lock`) in its
+//!    first line;
+//! 2. the wasm test `wasm_node` runs the same computation through the
+//!    bindings and compares its poses with that file — only when the
+//!    fingerprint equals the current sources' (a stale file is never used).
+//!
+//! `scripts/test-wasm.sh` runs step 1 then step 2 and sets
+//! `SURFEL_SLAM_REQUIRE_PARITY=1`, which turns a missing or stale reference
+//! into a failure. A plain `cargo test --target wasm32-unknown-unknown`
+//! without a fresh reference still checks everything else and says that the
+//! comparison was skipped.
+
+#![allow(dead_code)]
+
+use glam::{DAffine3, DQuat};
+use surfel_slam::synthetic;
+use surfel_slam::{DepthSettings, SlamConfig};
+
+/// Frames of the synthetic sequence.
+pub const SYNTHETIC_FRAMES: usize = 20;
+/// Frames of the real sequence (ICL-NUIM office kt0) compared.
+pub const REAL_FRAMES: usize = 10;
+/// Real sequence used, under `../shared/data/`.
+pub const REAL_SEQUENCE: &str = "icl_office_kt0";
+
+/// Poses may differ by this much between native and wasm (metres).
+/// Both run the same f32/f64 code with the same reduction order; what can
+/// differ is the last bit of libm functions (`exp`, `atan2`, ...).
+pub const PARITY_TRANSLATION_M: f64 = 1e-5;
+/// Same, rotation angle (radians).
+pub const PARITY_ROTATION_RAD: f64 = 1e-5;
+
+/// Where the native reference trajectories are written.
+#[must_use]
+pub fn reference_path(name: &str) -> String {
+    format!(
+        "{}/target/wasm-parity/{name}.tum",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+/// `../shared/data/<name>` (absolute).
+#[must_use]
+pub fn data_dir(name: &str) -> String {
+    format!("{}/../shared/data/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Files whose content determines the computed poses, relative to the
+/// manifest directory; filter applied to a recursive listing of the crate.
+#[must_use]
+pub fn is_fingerprinted(relative: &str) -> bool {
+    relative == "Cargo.toml"
+        || relative == "Cargo.lock"
+        || (relative.starts_with("src/") && relative.ends_with(".rs"))
+        || (relative.starts_with("tests/wasm_common/") && relative.ends_with(".rs"))
+}
+
+/// FNV-1a over `(path, contents)` in path order: identifies the sources.
+#[must_use]
+pub fn fingerprint(mut files: Vec<(String, Vec<u8>)>) -> String {
+    files.sort_by(|a, b| a.0.cmp(&b.0));
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    for (path, contents) in &files {
+        eat(path.as_bytes());
+        eat(&[0]);
+        eat(contents);
+        eat(&[0xff]);
+    }
+    format!("{h:016x} ({} files)", files.len())
+}
+
+/// First line of a reference file.
+#[must_use]
+pub fn header(fingerprint: &str) -> String {
+    format!("# surfel-slam native reference, sources {fingerprint}\n")
+}
+
+/// The reference's poses if its header matches `fingerprint`, else why not.
+pub fn read_reference(
+    text: Option<String>,
+    fingerprint: &str,
+) -> Result<Vec<(f64, DAffine3)>, String> {
+    let text = text.ok_or("no native reference file")?;
+    let expected = header(fingerprint);
+    let body = text.strip_prefix(&expected).ok_or_else(|| {
+        format!(
+            "stale native reference (written for other sources: {:?}, current {fingerprint})",
+            text.lines().next().unwrap_or("")
+        )
+    })?;
+    surfel_slam::dataset::trajectory::parse_tum(body, "native reference")
+        .map_err(|e| e.to_string())
+}
+
+/// One synthetic frame as a caller with decoded buffers has it.
+pub struct RawFrame {
+    /// Seconds.
+    pub timestamp: f64,
+    /// Pixels.
+    pub width: usize,
+    /// Pixels.
+    pub height: usize,
+    /// RGBA8, row-major.
+    pub rgba: Vec<u8>,
+    /// Raw depth units (`depth_settings().scale` per metre), 0 = none.
+    pub depth: Vec<u16>,
+}
+
+/// The synthetic sequence (`surfel_slam::synthetic`: the room, its known
+/// trajectory, Kinect-like noise, 320x240): config, frames, ground truth
+/// (`world_from_camera`).
+pub fn synthetic_sequence() -> (SlamConfig, Vec<RawFrame>, Vec<(f64, DAffine3)>) {
+    let intrinsics = synthetic::default_intrinsics().half();
+    let depth = DepthSettings {
+        scale: synthetic::DEPTH_UNITS_PER_METRE,
+        min_m: 0.3,
+        max_m: 5.0,
+        invalid_raw: None,
+    };
+    let mut config = SlamConfig::from_preset(surfel_slam::CameraPreset::TumFr3);
+    config.intrinsics = intrinsics;
+    config.depth = depth;
+    let scene = synthetic::Scene::room();
+    let noise = synthetic::NoiseModel::kinect();
+    let mut frames = Vec::new();
+    let mut ground_truth = Vec::new();
+    for (i, pose) in synthetic::trajectory(SYNTHETIC_FRAMES).iter().enumerate() {
+        let timestamp = i as f64 / 30.0;
+        let frame = synthetic::render(&scene, &intrinsics, pose, &noise, i as u64);
+        let rgba = frame
+            .rgb
+            .chunks_exact(3)
+            .flat_map(|p| [p[0], p[1], p[2], 255])
+            .collect();
+        frames.push(RawFrame {
+            timestamp,
+            width: frame.width,
+            height: frame.height,
+            rgba,
+            depth: frame.depth_raw,
+        });
+        ground_truth.push((timestamp, *pose));
+    }
+    (config, frames, ground_truth)
+}
+
+/// Largest translation (m) and rotation (rad) difference between two
+/// trajectories of equal length and timestamps.
+pub fn max_difference(
+    a: &[(f64, DAffine3)],
+    b: &[(f64, DAffine3)],
+) -> Result<(f64, f64), String> {
+    if a.len() != b.len() {
+        return Err(format!("{} poses vs {} poses", a.len(), b.len()));
+    }
+    let mut worst = (0.0f64, 0.0f64);
+    for ((ta, pa), (tb, pb)) in a.iter().zip(b) {
+        if (ta - tb).abs() > 1e-6 {
+            return Err(format!("timestamps differ: {ta} vs {tb}"));
+        }
+        let dt = (pa.translation - pb.translation).length();
+        let qa = DQuat::from_mat3(&pa.matrix3).normalize();
+        let qb = DQuat::from_mat3(&pb.matrix3).normalize();
+        let dr = qa.angle_between(qb);
+        worst = (worst.0.max(dt), worst.1.max(dr));
+    }
+    Ok(worst)
+}

@@ -1,0 +1,359 @@
+//! The wasm bindings under Node (wasm-bindgen-test):
+//! `cargo test --target wasm32-unknown-unknown --no-default-features --test wasm_node`
+//! (`.cargo/config.toml` makes wasm-bindgen-test-runner the runner).
+//!
+//! - a synthetic sequence tracked through `Slam.pushRaw` has a small ATE and
+//!   the same poses as the native reference (`tests/wasm_common` explains how);
+//! - real ICL-NUIM frames read from `../shared/data` with Node's `fs` and
+//!   pushed as PNG bytes track, have a small ATE and match native
+//!   (skipped with a message when `../shared` is absent);
+//! - bad bytes and bad configs throw JS errors (no panic) and the pipeline
+//!   keeps working afterwards;
+//! - views, ranges, exports and the dataset functions have the right shapes.
+
+#![cfg(target_arch = "wasm32")]
+
+mod wasm_common;
+
+use std::collections::HashMap;
+
+use glam::DAffine3;
+use js_sys::{Array, Object, Reflect};
+use surfel_slam::dataset::{detect_layout, parse_sequence};
+use surfel_slam::wasm::{self, Slam};
+use surfel_slam::{eval, SlamConfig};
+use wasm_bindgen::prelude::*;
+use wasm_bindgen_test::*;
+use wasm_common::*;
+
+#[wasm_bindgen(module = "fs")]
+extern "C" {
+    #[wasm_bindgen(catch, js_name = readFileSync)]
+    fn read_file_sync(path: &str) -> Result<Vec<u8>, JsValue>;
+    #[wasm_bindgen(catch, js_name = readdirSync)]
+    fn readdir_sync(path: &str, options: &JsValue) -> Result<Array, JsValue>;
+    #[wasm_bindgen(js_name = existsSync)]
+    fn exists_sync(path: &str) -> bool;
+}
+
+fn read_file(path: &str) -> Option<Vec<u8>> {
+    read_file_sync(path).ok()
+}
+
+fn read_text(path: &str) -> Option<String> {
+    read_file(path).and_then(|b| String::from_utf8(b).ok())
+}
+
+/// Relative paths of every entry under `dir` ('/' separated, sorted).
+fn list_recursive(dir: &str) -> Vec<String> {
+    let options = Object::new();
+    let _ = Reflect::set(&options, &"recursive".into(), &JsValue::TRUE);
+    let mut names: Vec<String> = readdir_sync(dir, &options)
+        .map(|a| a.iter().filter_map(|v| v.as_string()).collect())
+        .unwrap_or_default();
+    names.sort();
+    names
+}
+
+fn env_var(key: &str) -> Option<String> {
+    let process = Reflect::get(&js_sys::global(), &"process".into()).ok()?;
+    let env = Reflect::get(&process, &"env".into()).ok()?;
+    Reflect::get(&env, &key.into()).ok()?.as_string()
+}
+
+fn source_fingerprint() -> String {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let files = list_recursive(root)
+        .into_iter()
+        .filter(|n| is_fingerprinted(n))
+        .filter_map(|n| read_file(&format!("{root}/{n}")).map(|b| (n, b)))
+        .collect();
+    fingerprint(files)
+}
+
+/// Compares with the native reference when it is fresh; see `wasm_common`.
+fn check_parity(name: &str, poses: &[(f64, DAffine3)]) {
+    let require = env_var("SURFEL_SLAM_REQUIRE_PARITY").is_some_and(|v| v == "1");
+    match read_reference(read_text(&reference_path(name)), &source_fingerprint()) {
+        Ok(reference) => {
+            let (dt, dr) = max_difference(poses, &reference).expect("comparable trajectories");
+            console_log!("{name}: wasm vs native max difference {dt:.3e} m, {dr:.3e} rad");
+            assert!(
+                dt <= PARITY_TRANSLATION_M && dr <= PARITY_ROTATION_RAD,
+                "{name}: wasm differs from native by {dt} m / {dr} rad"
+            );
+        }
+        Err(why) if require => panic!(
+            "{name}: {why}; run `cargo test --release --test wasm_parity_native` first"
+        ),
+        Err(why) => console_log!(
+            "{name}: native comparison SKIPPED ({why}); run \
+             `cargo test --test wasm_parity_native` first or use scripts/test-wasm.sh"
+        ),
+    }
+}
+
+fn get(v: &JsValue, key: &str) -> JsValue {
+    Reflect::get(v, &key.into()).unwrap_or(JsValue::UNDEFINED)
+}
+
+fn num(v: &JsValue, key: &str) -> f64 {
+    get(v, key).as_f64().unwrap_or(f64::NAN)
+}
+
+fn text(v: &JsValue, key: &str) -> String {
+    get(v, key).as_string().unwrap_or_default()
+}
+
+fn message(e: JsError) -> String {
+    let v: JsValue = e.into();
+    text(&v, "message")
+}
+
+/// The JS config object for `config` (as a page would write it).
+fn config_object(config: &SlamConfig) -> JsValue {
+    let k = config.intrinsics;
+    let d = config.depth;
+    let o = Object::new();
+    for (key, value) in [
+        ("preset", JsValue::from_str("tum-fr3")),
+        ("fx", k.fx.into()),
+        ("fy", k.fy.into()),
+        ("cx", k.cx.into()),
+        ("cy", k.cy.into()),
+        ("width", (k.width as f64).into()),
+        ("height", (k.height as f64).into()),
+        ("depthScale", d.scale.into()),
+        ("depthMin", d.min_m.into()),
+        ("depthMax", d.max_m.into()),
+    ] {
+        let _ = Reflect::set(&o, &key.into(), &value);
+    }
+    o.into()
+}
+
+fn trajectory_of(slam: &Slam) -> Vec<(f64, DAffine3)> {
+    slam.pipeline().trajectory().to_vec()
+}
+
+#[wasm_bindgen_test]
+fn synthetic_sequence_tracks_and_matches_native() {
+    let (config, frames, ground_truth) = synthetic_sequence();
+    let mut slam = Slam::new(config_object(&config)).expect("valid config");
+    assert_eq!(slam.pipeline().config(), &config, "JS config maps to the native one");
+    for f in &frames {
+        let r = slam
+            .push_raw(f.width as u32, f.height as u32, &f.rgba, &f.depth, f.timestamp)
+            .map_err(message)
+            .expect("frame accepted");
+        let verdict = text(&r, "verdict");
+        assert!(verdict == "tracked" || verdict == "initialised", "{verdict}");
+    }
+    let trajectory = trajectory_of(&slam);
+    let ate = eval::ate(&trajectory, &ground_truth, 1e-3).expect("ATE");
+    console_log!("synthetic: wasm ATE rmse {:.6} m over {} frames", ate.rmse_m, ate.pairs);
+    assert!(ate.rmse_m < 0.01, "synthetic ATE {} m", ate.rmse_m);
+    check_parity("synthetic", &trajectory);
+
+    // Views have the documented lengths.
+    let n = slam.surfel_count() as u32;
+    assert!(n > 1000, "{n} surfels");
+    assert_eq!(slam.positions().length(), 3 * n);
+    assert_eq!(slam.normals().length(), 3 * n);
+    assert_eq!(slam.colours().length(), 4 * n);
+    assert_eq!(slam.radii().length(), n);
+    assert_eq!(slam.confidences().length(), n);
+    let range = slam.take_changed_range();
+    assert!(range.get(1).as_f64().unwrap_or(0.0) <= f64::from(n));
+    let ply = slam.export_ply();
+    assert!(ply.starts_with(b"ply\n") && ply.len() > n as usize * 35);
+    assert_eq!(slam.trajectory_tum().lines().count(), frames.len() + 1);
+    slam.reset();
+    assert_eq!((slam.surfel_count(), slam.frames()), (0, 0));
+}
+
+#[wasm_bindgen_test]
+fn real_frames_track_and_match_native() {
+    let dir = data_dir(REAL_SEQUENCE);
+    if !exists_sync(&dir) {
+        console_log!("skipping: {dir} is absent (no ../shared/data)");
+        return;
+    }
+    // The same parser as the CLI and the page, on a Node listing.
+    let names = list_recursive(&dir);
+    let layout = detect_layout(&names).expect("layout");
+    let texts: HashMap<String, String> = layout
+        .index_files
+        .iter()
+        .map(|f| (f.clone(), read_text(&format!("{dir}/{f}")).expect("index file")))
+        .collect();
+    let sequence = parse_sequence(&layout, &names, &texts, Some(REAL_SEQUENCE)).expect("sequence");
+
+    let mut slam = Slam::new(JsValue::from_str(sequence.preset.name())).expect("preset");
+    for entry in sequence.frames.iter().take(REAL_FRAMES) {
+        let colour = read_file(&format!("{dir}/{}", entry.colour)).expect("colour");
+        let depth = read_file(&format!("{dir}/{}", entry.depth)).expect("depth");
+        let r = slam
+            .push_frame(&colour, &depth, entry.timestamp)
+            .map_err(message)
+            .expect("frame accepted");
+        let verdict = text(&r, "verdict");
+        assert!(verdict == "tracked" || verdict == "initialised", "frame {}: {verdict}", entry.index);
+        assert!(num(&r, "surfels") > 10_000.0);
+    }
+    let trajectory = trajectory_of(&slam);
+    let ate = eval::ate(&trajectory, &sequence.ground_truth, 1e-3).expect("ATE");
+    console_log!(
+        "{REAL_SEQUENCE}: wasm ATE rmse {:.4} m over {} frames, {} surfels",
+        ate.rmse_m,
+        ate.pairs,
+        slam.surfel_count()
+    );
+    assert!(ate.rmse_m < 0.02, "ATE {} m", ate.rmse_m);
+    check_parity(REAL_SEQUENCE, &trajectory);
+}
+
+fn png(image: image::DynamicImage) -> Vec<u8> {
+    let mut out = std::io::Cursor::new(Vec::new());
+    image
+        .write_to(&mut out, image::ImageFormat::Png)
+        .expect("encode PNG");
+    out.into_inner()
+}
+
+#[wasm_bindgen_test]
+fn bad_input_throws_and_the_pipeline_keeps_working() {
+    let (config, frames, _) = synthetic_sequence();
+    let (w, h) = (frames[0].width as u32, frames[0].height as u32);
+    let encode = |f: &RawFrame| {
+        let rgba = image::RgbaImage::from_raw(w, h, f.rgba.clone()).expect("rgba");
+        let depth = image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, f.depth.clone())
+            .expect("depth");
+        (
+            png(image::DynamicImage::ImageRgba8(rgba)),
+            png(image::DynamicImage::ImageLuma16(depth)),
+        )
+    };
+    let mut slam = Slam::new(config_object(&config)).expect("valid config");
+    let (c0, d0) = encode(&frames[0]);
+    slam.push_frame(&c0, &d0, 0.0).map_err(message).expect("first frame");
+
+    let garbage = b"definitely not a PNG".to_vec();
+    let mut truncated = d0.clone();
+    truncated.truncate(d0.len() / 2);
+    let depth8 = png(image::DynamicImage::ImageLuma8(image::GrayImage::new(w, h)));
+    let small = png(image::DynamicImage::ImageLuma16(image::ImageBuffer::new(8, 8)));
+    let cases: [(&str, &[u8], &[u8], &str); 6] = [
+        ("garbage colour", &garbage, &d0, "colour image could not be decoded"),
+        ("garbage depth", &c0, &garbage, "depth image could not be decoded"),
+        ("truncated depth", &c0, &truncated, "depth image could not be decoded"),
+        ("8-bit depth", &c0, &depth8, "16-bit"),
+        ("empty", &[], &[], "could not be decoded"),
+        ("size mismatch", &c0, &small, "but depth is 8x8"),
+    ];
+    for (what, colour, depth, expected) in cases {
+        let err = slam
+            .push_frame(colour, depth, 1.0)
+            .map(|_| ())
+            .map_err(message)
+            .expect_err(what);
+        console_log!("{what}: {err}");
+        assert!(err.contains(expected), "{what}: {err:?} lacks {expected:?}");
+    }
+    let err = slam
+        .push_raw(w, h, &frames[1].rgba[..10], &frames[1].depth, 1.0)
+        .map(|_| ())
+        .map_err(message)
+        .expect_err("short rgba");
+    assert!(err.contains("colour buffer has 10 values"), "{err}");
+    let err = slam
+        .push_raw(w + 2, h, &frames[1].rgba, &frames[1].depth, 1.0)
+        .map(|_| ())
+        .map_err(message)
+        .expect_err("wrong size");
+    assert!(err.contains("depth buffer"), "{err}");
+    let err = slam
+        .push_raw(w, h, &frames[1].rgba, &frames[1].depth, f64::NAN)
+        .map(|_| ())
+        .map_err(message)
+        .expect_err("NaN timestamp");
+    assert!(err.contains("timestamp"), "{err}");
+    assert_eq!(slam.frames(), 1, "failed pushes change nothing");
+
+    // Still works.
+    for (i, f) in frames.iter().enumerate().take(4).skip(1) {
+        let (c, d) = encode(f);
+        let r = slam.push_frame(&c, &d, f.timestamp).map_err(message).expect("frame");
+        assert_eq!(text(&r, "verdict"), "tracked", "frame {i}");
+        assert_eq!(get(&r, "lostReason"), JsValue::NULL);
+        let pose: js_sys::Float64Array = get(&r, "pose").into();
+        assert_eq!(pose.length(), 16);
+        assert_eq!(pose.get_index(15), 1.0);
+    }
+    assert_eq!(slam.frames(), 4);
+}
+
+#[wasm_bindgen_test]
+fn bad_configs_throw_clear_errors() {
+    let obj = |pairs: &[(&str, JsValue)]| -> JsValue {
+        let o = Object::new();
+        for (k, v) in pairs {
+            let _ = Reflect::set(&o, &(*k).into(), v);
+        }
+        o.into()
+    };
+    let cases = [
+        (JsValue::UNDEFINED, "must be an object"),
+        (JsValue::from_str("kinect-9"), "unknown preset \"kinect-9\""),
+        (obj(&[("preset", "nope".into())]), "unknown preset"),
+        (obj(&[("fx", 500.0.into())]), "missing: fy, cx, cy, width, height"),
+        (obj(&[("preset", "tum-fr3".into()), ("depthscale", 1.0.into())]), "unknown config field \"depthscale\""),
+        (obj(&[("preset", "tum-fr3".into()), ("depthScale", (-1.0).into())]), "depth scale must be a positive"),
+        (obj(&[("preset", "tum-fr3".into()), ("fx", "big".into())]), "config.fx must be a finite number"),
+        (obj(&[("preset", "tum-fr3".into()), ("width", 10.5.into())]), "config.width must be an integer"),
+        (obj(&[("preset", "tum-fr3".into()), ("width", 20.0.into()), ("height", 20.0.into())]), "pyramid levels do not fit"),
+        (obj(&[("preset", "icl-nuim".into()), ("iterations", Array::of1(&3.into()).into())]), "tracker needs iterations"),
+    ];
+    for (config, expected) in cases {
+        let err = Slam::new(config).map(|_| ()).map_err(message).expect_err(expected);
+        assert!(err.contains(expected), "{err:?} lacks {expected:?}");
+    }
+    let presets = wasm::presets();
+    assert_eq!(presets.length(), 5);
+    assert_eq!(text(&presets.get(0), "name"), "tum-fr1");
+    assert_eq!(wasm::thread_count(), 1);
+}
+
+#[wasm_bindgen_test]
+fn dataset_functions_from_js() {
+    let names: Array = ["seq/rgb.txt", "seq/depth.txt", "seq/groundtruth.txt", "seq/rgb/1.0.png", "seq/depth/1.0.png"]
+        .iter()
+        .map(|s| JsValue::from_str(s))
+        .collect();
+    let layout = wasm::detect_layout(names.clone().into()).map_err(message).expect("layout");
+    assert_eq!(text(&layout, "kind"), "tum");
+    let texts = Object::new();
+    let _ = Reflect::set(&texts, &"seq/rgb.txt".into(), &"1.0 rgb/1.0.png\n".into());
+    let _ = Reflect::set(&texts, &"seq/depth.txt".into(), &"1.0 depth/1.0.png\n".into());
+    let _ = Reflect::set(&texts, &"seq/groundtruth.txt".into(), &"1.0 1 2 3 0 0 0 1\n".into());
+    let seq = wasm::parse_sequence(names.into(), texts.into(), "freiburg1_desk".into())
+        .map_err(message)
+        .expect("sequence");
+    assert_eq!(text(&seq, "preset"), "tum-fr1");
+    let frames: Array = get(&seq, "frames").into();
+    assert_eq!(frames.length(), 1);
+    assert_eq!(text(&frames.get(0), "colour"), "seq/rgb/1.0.png");
+    let gt: Array = get(&seq, "groundTruth").into();
+    assert_eq!(Array::from(&gt.get(0)).get(1).as_f64(), Some(1.0));
+
+    let err = wasm::detect_layout(JsValue::from_f64(3.0)).map(|_| ()).map_err(message).expect_err("not an array");
+    assert!(err.contains("array of strings"), "{err}");
+    let err = wasm::detect_layout(Array::of1(&"a.jpg".into()).into()).map(|_| ()).map_err(message).expect_err("unknown");
+    assert!(err.contains("rgb.txt"), "{err}");
+
+    let tum = "1 0 0 0 0 0 0 1\n2 1 0 0 0 0 0 1\n3 2 0 0 0 0 0 1\n";
+    let ate = wasm::ate_tum(tum, tum, None).map_err(message).expect("ATE");
+    assert!(num(&ate, "rmse") < 1e-9 && num(&ate, "pairs") == 3.0);
+    let err = wasm::ate_tum("1 2 3", tum, None).map(|_| ()).map_err(message).expect_err("malformed");
+    assert!(err.contains("estimate, line 1"), "{err}");
+}

@@ -1,0 +1,112 @@
+//! Native half of the native/wasm parity check (see `tests/wasm_common`):
+//! runs the synthetic sequence and the first ICL-NUIM frames on a
+//! single-thread rayon pool and writes the poses to `target/wasm-parity/`,
+//! where `tests/wasm_node.rs` (wasm32, Node) compares its own against them.
+
+#![cfg(not(target_arch = "wasm32"))]
+
+mod wasm_common;
+
+use std::path::Path;
+
+use surfel_slam::dataset::{trajectory::format_tum, Sequence};
+use surfel_slam::{eval, Pipeline, RgbdFrame, SlamConfig, Verdict};
+use wasm_common::*;
+
+fn single_thread<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("a one-thread rayon pool")
+        .install(f)
+}
+
+fn list_recursive(root: &Path, rel: &str, out: &mut Vec<String>) {
+    let Ok(entries) = std::fs::read_dir(root.join(rel)) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let child = if rel.is_empty() {
+            name
+        } else {
+            format!("{rel}/{name}")
+        };
+        if entry.file_type().is_ok_and(|t| t.is_dir()) {
+            if child != "target" && !child.starts_with('.') && child != "node_modules" {
+                list_recursive(root, &child, out);
+            }
+        } else {
+            out.push(child);
+        }
+    }
+}
+
+fn source_fingerprint() -> String {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut names = Vec::new();
+    list_recursive(root, "", &mut names);
+    let files = names
+        .into_iter()
+        .filter(|n| is_fingerprinted(n))
+        .map(|n| {
+            let bytes = std::fs::read(root.join(&n)).expect("readable source file");
+            (n, bytes)
+        })
+        .collect();
+    fingerprint(files)
+}
+
+fn write_reference(name: &str, poses: &[(f64, glam::DAffine3)]) {
+    let path = reference_path(name);
+    let text = header(&source_fingerprint()) + &format_tum(poses);
+    std::fs::create_dir_all(Path::new(&path).parent().expect("has a parent"))
+        .expect("create target/wasm-parity");
+    std::fs::write(&path, text).expect("write the reference");
+    eprintln!("wrote {path}");
+}
+
+#[test]
+fn synthetic_reference() {
+    let (config, frames, ground_truth) = synthetic_sequence();
+    let trajectory = single_thread(|| {
+        let settings = config.depth;
+        let mut pipeline = Pipeline::new(config).expect("valid config");
+        for f in &frames {
+            let frame = RgbdFrame::from_raw(f.width, f.height, &f.rgba, &f.depth, &settings)
+                .expect("valid frame");
+            let r = pipeline.push_frame(&frame, f.timestamp).expect("frame accepted");
+            assert!(!matches!(r.verdict, Verdict::Lost(_)), "frame {} lost", r.index);
+        }
+        pipeline.trajectory().to_vec()
+    });
+    let ate = eval::ate(&trajectory, &ground_truth, 1e-3).expect("ATE");
+    eprintln!("native synthetic ATE rmse {:.6} m", ate.rmse_m);
+    assert!(ate.rmse_m < 0.01, "synthetic ATE {} m", ate.rmse_m);
+    write_reference("synthetic", &trajectory);
+}
+
+#[test]
+fn real_frames_reference() {
+    let dir = data_dir(REAL_SEQUENCE);
+    let dir = Path::new(&dir);
+    if !dir.is_dir() {
+        eprintln!("skipping: {} is absent (no ../shared/data)", dir.display());
+        return;
+    }
+    let sequence = Sequence::open(dir).expect("ICL-NUIM sequence parses");
+    let config = SlamConfig::from_preset(sequence.preset);
+    let trajectory = single_thread(|| {
+        let mut pipeline = Pipeline::new(config.clone()).expect("valid config");
+        for entry in sequence.frames.iter().take(REAL_FRAMES) {
+            let colour = std::fs::read(dir.join(&entry.colour)).expect("colour");
+            let depth = std::fs::read(dir.join(&entry.depth)).expect("depth");
+            let r = pipeline
+                .push_png(&colour, &depth, entry.timestamp)
+                .expect("frame accepted");
+            assert!(!matches!(r.verdict, Verdict::Lost(_)), "frame {} lost", r.index);
+        }
+        pipeline.trajectory().to_vec()
+    });
+    write_reference(REAL_SEQUENCE, &trajectory);
+}

@@ -1,0 +1,108 @@
+// Live statistics: frames, tracked / lost, surfels, frames per second, ms per
+// pipeline stage (moving average), ATE so far (computed in the worker with the
+// wasm module's ateTum when the sequence has ground truth).
+
+const STAGES = ['decode', 'preprocess', 'track', 'fuse', 'predict', 'total'];
+const WINDOW = 15;
+
+export class Stats {
+  constructor(table) {
+    this.table = table;
+    this.reset();
+  }
+
+  reset() {
+    this.framesProcessed = 0;
+    this.framesTracked = 0;
+    this.framesLost = 0;
+    this.framesFailed = 0;
+    this.surfels = 0;
+    this.changed = undefined;
+    this.ate = null;
+    this.atePairs = 0;
+    this.lastVerdict = '';
+    this.lastLostReason = null;
+    this.recent = []; // {t, timings, wall}
+    this.fps = 0;
+    this.msPerFrame = 0;
+    this.stageMs = Object.fromEntries(STAGES.map((s) => [s, 0]));
+    this.wallMs = 0;
+    this.frameIndex = -1;
+    this.frameCount = 0;
+    this.render();
+  }
+
+  /** One processed frame: message from the worker. */
+  onFrame(msg) {
+    const r = msg.result;
+    this.framesProcessed++;
+    if (r.verdict === 'lost') this.framesLost++;
+    else this.framesTracked++;
+    this.lastVerdict = r.verdict;
+    this.lastLostReason = r.lostReason ?? null;
+    this.surfels = msg.surfels.count;
+    this.changed = msg.surfels.end - msg.surfels.start;
+    this.frameIndex = msg.index;
+    this.frameCount = msg.frameCount;
+    if (msg.ate && Number.isFinite(msg.ate.rmse)) {
+      this.ate = msg.ate.rmse;
+      this.atePairs = msg.ate.pairs ?? 0;
+    }
+    const now = msg.timing?.doneAt ?? performance.now() + performance.timeOrigin;
+    this.recent.push({ t: now, timings: r.timings ?? {}, wall: msg.timing?.wall ?? 0 });
+    if (this.recent.length > WINDOW) this.recent.shift();
+    const n = this.recent.length;
+    if (n >= 2) {
+      const span = (this.recent[n - 1].t - this.recent[0].t) / 1000;
+      this.fps = span > 0 ? (n - 1) / span : 0;
+    }
+    for (const s of STAGES) {
+      this.stageMs[s] = this.recent.reduce((acc, f) => acc + (Number(f.timings[s]) || 0), 0) / n;
+    }
+    this.wallMs = this.recent.reduce((acc, f) => acc + f.wall, 0) / n;
+    this.msPerFrame = this.stageMs.total || this.wallMs;
+    this.render();
+  }
+
+  onFailedFrame(msg) {
+    this.framesFailed++;
+    this.frameIndex = msg.index;
+    this.frameCount = msg.frameCount ?? this.frameCount;
+    this.render();
+  }
+
+  /** Paused: the next run's frame rate starts afresh (the last value stays shown). */
+  onIdle() {
+    this.recent = [];
+  }
+
+  render() {
+    if (!this.table) return;
+    const f1 = (x) => (Number.isFinite(x) ? x.toFixed(1) : '–');
+    const rows = [
+      ['frame', this.frameIndex >= 0 ? `${this.frameIndex + 1} / ${this.frameCount}` : '–'],
+      ['processed', `${this.framesProcessed}`],
+      ['tracked / lost', `${this.framesTracked} / ${this.framesLost}`],
+      ['failed (errors)', `${this.framesFailed}`],
+      ['last verdict', this.lastVerdict ? this.lastVerdict + (this.lastLostReason ? ` (${this.lastLostReason})` : '') : '–'],
+      ['surfels', this.surfels.toLocaleString('en-US')],
+      ['fps', this.fps > 0 ? f1(this.fps) : '–'],
+      ['ms / frame (wasm)', f1(this.stageMs.total)],
+      ...STAGES.slice(0, -1).map((s) => [`\u2003${s}`, f1(this.stageMs[s])]),
+      ['ms / frame (worker)', f1(this.wallMs)],
+      ['changed surfels', this.changed === undefined ? '–' : this.changed.toLocaleString('en-US')],
+      ['ATE rmse', this.ate === null ? '–' : `${(this.ate * 100).toFixed(1)} cm (${this.atePairs} poses)`],
+    ];
+    this.table.replaceChildren(
+      ...rows.map(([k, v]) => {
+        const tr = document.createElement('tr');
+        const th = document.createElement('th');
+        const td = document.createElement('td');
+        th.textContent = k;
+        td.textContent = v;
+        tr.append(th, td);
+        return tr;
+      }),
+    );
+  }
+}

@@ -1,0 +1,127 @@
+// Small live views of the current input: the colour image and the depth image
+// colour-mapped (near = warm, far = cool, no measurement = black).
+//
+// Both are decoded by the browser (createImageBitmap, off the main thread).
+// A 16-bit depth PNG decodes to 8 bits per channel (the high byte), so the
+// depth view has a resolution of 256 raw units (~5 cm at 5000 units/m):
+// enough for a preview; the SLAM itself reads the full 16 bits in wasm.
+
+const VIEW_W = 192;
+const VIEW_H = 144;
+
+function turbo(x) {
+  // Polynomial fit of Google's Turbo colour map (x in 0..1) -> [r, g, b] 0..255.
+  x = Math.min(1, Math.max(0, x));
+  const r = 0.13572138 + x * (4.6153926 + x * (-42.66032258 + x * (132.13108234 + x * (-152.94239396 + x * 59.28637943))));
+  const g = 0.09140261 + x * (2.19418839 + x * (4.84296658 + x * (-14.18503333 + x * (4.27729857 + x * 2.82956604))));
+  const b = 0.1066733 + x * (12.64194608 + x * (-60.58204836 + x * (110.36276771 + x * (-89.90310912 + x * 27.34824973))));
+  return [r * 255, g * 255, b * 255];
+}
+
+export class InputViews {
+  constructor(colourCanvas, depthCanvas, depthLabel) {
+    this.colour = colourCanvas;
+    this.depth = depthCanvas;
+    this.depthLabel = depthLabel;
+    for (const c of [colourCanvas, depthCanvas]) {
+      c.width = VIEW_W;
+      c.height = VIEW_H;
+    }
+    this.colourCtx = colourCanvas.getContext('2d');
+    this.depthCtx = depthCanvas.getContext('2d', { willReadFrequently: true });
+    this.busy = false;
+    this.pending = null;
+    this.range = [0.3, 4.0];
+    this.lut = new Uint8ClampedArray(256 * 3);
+    this.depthScale = 0;
+  }
+
+  setDepthRange(min, max) {
+    this.range = [min, max];
+    this.depthScale = 0; // rebuild the lookup table
+  }
+
+  buildLut(depthScale) {
+    const [lo, hi] = this.range;
+    for (let v = 0; v < 256; v++) {
+      const metres = ((v + 0.5) * 256) / depthScale;
+      const rgb = v === 0 ? [0, 0, 0] : turbo(1 - (metres - lo) / (hi - lo));
+      this.lut.set(rgb, v * 3);
+    }
+    this.depthScale = depthScale;
+    if (this.depthLabel) this.depthLabel.textContent = `depth ${lo.toFixed(1)}-${hi.toFixed(1)} m`;
+  }
+
+  /** Shows one frame's input (PNG bytes). Drops frames while a decode is in flight. */
+  show(colourBytes, depthBytes, depthScale = 5000) {
+    this.pending = { colourBytes, depthBytes, depthScale: depthScale || 5000 };
+    if (!this.busy) this.drain();
+  }
+
+  async drain() {
+    this.busy = true;
+    while (this.pending) {
+      const { colourBytes, depthBytes, depthScale } = this.pending;
+      this.pending = null;
+      await Promise.all([this.drawColour(colourBytes), this.drawDepth(depthBytes, depthScale)]);
+    }
+    this.busy = false;
+  }
+
+  async drawColour(bytes) {
+    try {
+      const bitmap = await createImageBitmap(new Blob([bytes], { type: 'image/png' }), {
+        resizeWidth: VIEW_W,
+        resizeHeight: VIEW_H,
+        resizeQuality: 'medium',
+      });
+      this.colourCtx.drawImage(bitmap, 0, 0);
+      bitmap.close();
+    } catch {
+      this.placeholder(this.colourCtx, 'cannot decode');
+    }
+  }
+
+  async drawDepth(bytes, depthScale) {
+    try {
+      const bitmap = await createImageBitmap(new Blob([bytes], { type: 'image/png' }), {
+        resizeWidth: VIEW_W,
+        resizeHeight: VIEW_H,
+        resizeQuality: 'pixelated',
+        colorSpaceConversion: 'none',
+        premultiplyAlpha: 'none',
+      });
+      if (depthScale !== this.depthScale) this.buildLut(depthScale);
+      const ctx = this.depthCtx;
+      ctx.drawImage(bitmap, 0, 0);
+      bitmap.close();
+      const image = ctx.getImageData(0, 0, VIEW_W, VIEW_H);
+      const px = image.data;
+      for (let i = 0; i < px.length; i += 4) {
+        const v = px[i] * 3;
+        px[i] = this.lut[v];
+        px[i + 1] = this.lut[v + 1];
+        px[i + 2] = this.lut[v + 2];
+        px[i + 3] = 255;
+      }
+      ctx.putImageData(image, 0, 0);
+    } catch {
+      this.placeholder(this.depthCtx, 'cannot decode');
+    }
+  }
+
+  placeholder(ctx, text) {
+    ctx.fillStyle = '#222';
+    ctx.fillRect(0, 0, VIEW_W, VIEW_H);
+    ctx.fillStyle = '#f66';
+    ctx.font = '14px sans-serif';
+    ctx.fillText(text, 10, VIEW_H / 2);
+  }
+
+  clear() {
+    for (const ctx of [this.colourCtx, this.depthCtx]) {
+      ctx.fillStyle = '#111';
+      ctx.fillRect(0, 0, VIEW_W, VIEW_H);
+    }
+  }
+}

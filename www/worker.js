@@ -1,0 +1,392 @@
+// Web Worker: owns the wasm module and the Slam instance; runs the frame loop
+// (read files -> pushFrame: decode, track, fuse) and posts each result with a
+// copy of the changed surfel range (transferred, not cloned).
+//
+// Messages in:  {type: 'load', name, entries, autoplay}, 'play', 'pause',
+//               'step', 'reset', {type: 'config', config}, 'exportPly',
+//               'exportTrajectory'.
+// Messages out: 'ready', 'sequence', 'frame', 'frame-error', 'load-error',
+//               'state', 'ate', 'export', 'fatal'.
+import { SequenceSource } from './sequence.js';
+
+let wasm = null;
+let moduleKind = null;
+let threads = 1;
+let slam = null;
+let config = null; // Slam config currently in use
+let seq = null; // { id, name, kind, source, frames, gtTum }
+let seqCounter = 0;
+let next = 0; // index of the next frame to process
+let playing = false;
+let pumping = false;
+let prefetch = null; // { key, promise }
+let framesOk = 0;
+
+const post = (msg, transfer = []) => self.postMessage(msg, transfer);
+const errorText = (e) => (e && e.message ? e.message : String(e));
+
+// All work touching the module runs one job at a time, in message order.
+let chain = Promise.resolve();
+function serial(job) {
+  const run = chain.then(job);
+  chain = run.catch((e) => post({ type: 'fatal', message: `internal error: ${errorText(e)}` }));
+  return chain;
+}
+
+async function initModule() {
+  const notes = [];
+  if (self.crossOriginIsolated) {
+    try {
+      const m = await import('./pkg/threads/surfel_slam.js');
+      await m.default();
+      const want = Math.max(1, navigator.hardwareConcurrency || 1);
+      await m.initThreadPool(want);
+      wasm = m;
+      moduleKind = 'threads';
+      threads = typeof m.threadCount === 'function' ? m.threadCount() : want;
+    } catch (e) {
+      notes.push(`threaded module unavailable (${errorText(e)}); using the single-threaded SIMD module`);
+    }
+  } else {
+    notes.push('page is not cross-origin isolated: using the single-threaded SIMD module');
+  }
+  if (!wasm) {
+    const m = await import('./pkg/surfel_slam.js');
+    await m.default();
+    wasm = m;
+    moduleKind = 'simd';
+    threads = typeof m.threadCount === 'function' ? m.threadCount() : 1;
+  }
+  let presets = [];
+  try {
+    presets = toPlain(wasm.presets());
+  } catch (e) {
+    notes.push(`presets(): ${errorText(e)}`);
+  }
+  post({ type: 'ready', module: moduleKind, threads, presets, notes });
+}
+
+/** Deep copy into plain JS values (wasm-bindgen may hand out Maps or class objects). */
+function toPlain(v) {
+  if (v instanceof Map) return Object.fromEntries([...v].map(([k, x]) => [k, toPlain(x)]));
+  if (Array.isArray(v)) return v.map(toPlain);
+  if (ArrayBuffer.isView(v)) return v.slice();
+  if (v && typeof v === 'object') {
+    const o = {};
+    for (const k of Object.keys(v)) o[k] = toPlain(v[k]);
+    return o;
+  }
+  return v;
+}
+
+const presetName = (p) => (typeof p === 'string' ? p : p?.name ?? null);
+
+function createSlam(newConfig) {
+  const fresh = new wasm.Slam(newConfig); // throws on a bad config: keep the old one
+  if (slam) slam.free();
+  slam = fresh;
+  config = newConfig;
+  next = 0;
+  framesOk = 0;
+  prefetch = null;
+}
+
+function reportState(extra = {}) {
+  post({
+    type: 'state',
+    playing,
+    next,
+    frameCount: seq ? seq.frames.length : 0,
+    done: !!seq && next >= seq.frames.length,
+    surfels: slam ? slam.surfelCount : 0,
+    ...extra,
+  });
+}
+
+// ---- loading a sequence -----------------------------------------------------
+
+async function load({ name, entries, autoplay }) {
+  const source = new SequenceSource(entries);
+  const paths = source.paths;
+  let parsed;
+  try {
+    const layout = toPlain(wasm.detectLayout(paths));
+    const texts = {};
+    for (const f of layout.indexFiles) texts[f] = await source.readText(f);
+    parsed = toPlain(wasm.parseSequence(paths, texts, name));
+  } catch (e) {
+    // Keep the current sequence and map: only a good sequence replaces them.
+    post({ type: 'load-error', name, message: `${name}: ${errorText(e)}` });
+    reportState();
+    return;
+  }
+  const preset = presetName(parsed.preset);
+  const newConfig = { preset };
+  if (parsed.preset && typeof parsed.preset === 'object') Object.assign(newConfig, parsed.preset);
+  delete newConfig.name;
+  newConfig.preset = preset;
+  try {
+    createSlam(newConfig);
+  } catch (e) {
+    post({ type: 'load-error', name, message: `${name}: camera preset ${preset}: ${errorText(e)}` });
+    return;
+  }
+  const groundTruth = (parsed.groundTruth || []).map((row) => Array.from(row));
+  seq = {
+    id: ++seqCounter,
+    name,
+    kind: parsed.kind,
+    source,
+    frames: parsed.frames,
+    gtTum: parsed.groundTruthTum || (groundTruth.length ? groundTruth.map((r) => r.join(' ')).join('\n') + '\n' : null),
+  };
+  post({
+    type: 'sequence',
+    name,
+    kind: parsed.kind,
+    preset,
+    config: newConfig,
+    frameCount: seq.frames.length,
+    groundTruth,
+    fileCount: paths.length,
+  });
+  playing = !!autoplay;
+  reportState();
+  if (playing) pump();
+}
+
+// ---- the frame loop -----------------------------------------------------------
+
+function readFrame(index) {
+  const key = `${seq.id}:${index}`;
+  if (prefetch && prefetch.key === key) return prefetch.promise;
+  const f = seq.frames[index];
+  const promise = Promise.all([seq.source.read(f.colour), seq.source.read(f.depth)]);
+  promise.catch(() => {}); // handled by whoever awaits it
+  return promise;
+}
+
+function startPrefetch(index) {
+  if (!seq || index >= seq.frames.length) return;
+  const key = `${seq.id}:${index}`;
+  if (prefetch && prefetch.key === key) return;
+  prefetch = null;
+  prefetch = { key, promise: readFrame(index) };
+}
+
+/** Names the file concerned in an error from pushFrame. */
+function describeFrameError(frame, message) {
+  if (message.includes(frame.depth) || message.includes(frame.colour)) return message;
+  const depth = /depth/i.test(message);
+  const colour = /colou?r/i.test(message);
+  if (depth && !colour) return `${frame.depth}: ${message}`;
+  if (colour && !depth) return `${frame.colour}: ${message}`;
+  return `frame ${frame.index ?? ''} (${frame.colour}, ${frame.depth}): ${message}`;
+}
+
+async function processNext() {
+  if (!seq || !slam || next >= seq.frames.length) return;
+  const index = next++;
+  const frame = seq.frames[index];
+  const t0 = performance.now();
+  let colourBuf, depthBuf;
+  try {
+    [colourBuf, depthBuf] = await readFrame(index);
+  } catch (e) {
+    post({ type: 'frame-error', index, message: errorText(e), frameCount: seq.frames.length });
+    return;
+  }
+  startPrefetch(index + 1);
+  const tRead = performance.now();
+  const colour = new Uint8Array(colourBuf);
+  const depth = new Uint8Array(depthBuf);
+  let r;
+  try {
+    r = toPlain(slam.pushFrame(colour, depth, frame.timestamp));
+  } catch (e) {
+    post(
+      {
+        type: 'frame-error',
+        index,
+        message: describeFrameError(frame, errorText(e)),
+        frameCount: seq.frames.length,
+        input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null },
+      },
+      [colourBuf, depthBuf],
+    );
+    return;
+  }
+  const tPush = performance.now();
+  framesOk++;
+
+  // Copy out only the surfels that changed (the views into wasm memory are
+  // invalidated by the next call into the module).
+  const count = slam.surfelCount;
+  let [start, end] = Array.from(slam.takeChangedRange());
+  start = Math.max(0, Math.min(start, count));
+  end = Math.max(start, Math.min(end, count));
+  const surfels = {
+    count,
+    start,
+    end,
+    positions: slam.positions().slice(3 * start, 3 * end),
+    normals: slam.normals().slice(3 * start, 3 * end),
+    colours: slam.colours().slice(4 * start, 4 * end),
+    radii: slam.radii().slice(start, end),
+    confidences: slam.confidences().slice(start, end),
+  };
+  const tCopy = performance.now();
+
+  let ate = null;
+  const last = next >= seq.frames.length;
+  const every = seq.frames.length > 200 ? 10 : 1;
+  if (seq.gtTum && (framesOk % every === 0 || last)) {
+    try {
+      ate = toPlain(wasm.ateTum(slam.trajectoryTum(), seq.gtTum));
+    } catch {
+      ate = null; // too few associated poses yet
+    }
+  }
+  post(
+    {
+      type: 'frame',
+      index,
+      frameCount: seq.frames.length,
+      timestamp: frame.timestamp,
+      colourPath: frame.colour,
+      depthPath: frame.depth,
+      result: r,
+      surfels,
+      ate,
+      timing: {
+        read: tRead - t0,
+        push: tPush - tRead,
+        copy: tCopy - tPush,
+        wall: performance.now() - t0,
+        doneAt: performance.now() + performance.timeOrigin, // fps is measured where the work happens
+      },
+      input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null },
+      done: last,
+    },
+    [
+      surfels.positions.buffer,
+      surfels.normals.buffer,
+      surfels.colours.buffer,
+      surfels.radii.buffer,
+      surfels.confidences.buffer,
+      colourBuf,
+      depthBuf,
+    ],
+  );
+}
+
+const tick = () => new Promise((resolve) => setTimeout(resolve, 0));
+
+async function pump() {
+  if (pumping) return;
+  pumping = true;
+  try {
+    while (playing) {
+      if (!seq || next >= seq.frames.length) {
+        playing = false;
+        break;
+      }
+      await serial(processNext);
+      await tick(); // let pause / step / reset messages in
+    }
+  } finally {
+    pumping = false;
+    reportState();
+  }
+}
+
+function resetMap() {
+  if (!slam) return;
+  slam.reset();
+  next = 0;
+  framesOk = 0;
+  prefetch = null;
+}
+
+// ---- messages -----------------------------------------------------------------
+
+const ready = initModule().catch((e) => {
+  post({ type: 'fatal', message: `cannot load the wasm module: ${errorText(e)}` });
+  throw e;
+});
+
+self.onmessage = async (event) => {
+  const msg = typeof event.data === 'string' ? { type: event.data } : event.data;
+  try {
+    await ready;
+  } catch {
+    return;
+  }
+  switch (msg.type) {
+    case 'load':
+      playing = false;
+      serial(() => load(msg));
+      break;
+    case 'play':
+      if (seq && next >= seq.frames.length) {
+        // Play after the end starts again from an empty map.
+        serial(() => {
+          resetMap();
+          post({ type: 'reset' });
+        });
+      }
+      playing = true;
+      serial(() => reportState());
+      pump();
+      break;
+    case 'pause':
+      playing = false;
+      serial(() => reportState());
+      break;
+    case 'step':
+      playing = false;
+      serial(async () => {
+        await processNext();
+        reportState();
+      });
+      break;
+    case 'reset':
+      playing = false;
+      serial(() => {
+        resetMap();
+        post({ type: 'reset' });
+        reportState();
+      });
+      break;
+    case 'config':
+      serial(() => {
+        const wasPlaying = playing;
+        playing = false;
+        try {
+          createSlam(msg.config);
+        } catch (e) {
+          post({ type: 'config-error', message: `camera settings rejected: ${errorText(e)}` });
+          reportState();
+          return;
+        }
+        post({ type: 'reset', config: msg.config });
+        playing = wasPlaying;
+        reportState();
+        if (playing) pump();
+      });
+      break;
+    case 'exportPly':
+      serial(() => {
+        const bytes = slam ? slam.exportPly().slice() : new Uint8Array();
+        post({ type: 'export', what: 'ply', bytes, name: seq?.name }, [bytes.buffer]);
+      });
+      break;
+    case 'exportTrajectory':
+      serial(() => {
+        post({ type: 'export', what: 'trajectory', text: slam ? slam.trajectoryTum() : '', name: seq?.name });
+      });
+      break;
+    default:
+      post({ type: 'fatal', message: `unknown message ${msg.type}` });
+  }
+};
