@@ -301,7 +301,11 @@ mod tests {
     }
 
     fn depth16(w: u32, h: u32, v: u16) -> Vec<u8> {
-        png(DynamicImage::ImageLuma16(ImageBuffer::from_pixel(w, h, Luma([v]))))
+        png(DynamicImage::ImageLuma16(ImageBuffer::from_pixel(
+            w,
+            h,
+            Luma([v]),
+        )))
     }
 
     fn colour8(w: u32, h: u32) -> Vec<u8> {
@@ -314,8 +318,12 @@ mod tests {
 
     #[test]
     fn decodes_depth_in_metres() {
-        let f = RgbdFrame::from_png_bytes(&colour8(4, 3), &depth16(4, 3, 5000), &DepthSettings::default())
-            .expect("valid frame");
+        let f = RgbdFrame::from_png_bytes(
+            &colour8(4, 3),
+            &depth16(4, 3, 5000),
+            &DepthSettings::default(),
+        )
+        .expect("valid frame");
         assert_eq!((f.width, f.height), (4, 3));
         assert!(f.depth_m.iter().all(|&d| (d - 1.0).abs() < 1e-6));
         assert_eq!(&f.rgb[..3], &[10, 20, 30]);
@@ -323,26 +331,53 @@ mod tests {
 
     #[test]
     fn rejects_8bit_depth() {
-        let d8 = png(DynamicImage::ImageLuma8(ImageBuffer::from_pixel(4, 3, Luma([7]))));
+        let d8 = png(DynamicImage::ImageLuma8(ImageBuffer::from_pixel(
+            4,
+            3,
+            Luma([7]),
+        )));
         let err = RgbdFrame::from_png_bytes(&colour8(4, 3), &d8, &DepthSettings::default());
-        assert!(matches!(err, Err(FrameError::DepthNot16Bit { .. })), "{err:?}");
+        assert!(
+            matches!(err, Err(FrameError::DepthNot16Bit { .. })),
+            "{err:?}"
+        );
     }
 
     #[test]
     fn rejects_size_mismatch_and_garbage() {
-        let err = RgbdFrame::from_png_bytes(&colour8(5, 3), &depth16(4, 3, 1), &DepthSettings::default());
+        let err =
+            RgbdFrame::from_png_bytes(&colour8(5, 3), &depth16(4, 3, 1), &DepthSettings::default());
         assert!(matches!(err, Err(FrameError::SizeMismatch { .. })));
-        let err = RgbdFrame::from_png_bytes(b"not a png", &depth16(4, 3, 1), &DepthSettings::default());
-        assert!(matches!(err, Err(FrameError::Decode { channel: Channel::Colour, .. })));
+        let err =
+            RgbdFrame::from_png_bytes(b"not a png", &depth16(4, 3, 1), &DepthSettings::default());
+        assert!(matches!(
+            err,
+            Err(FrameError::Decode {
+                channel: Channel::Colour,
+                ..
+            })
+        ));
         let mut truncated = depth16(64, 64, 1000);
         truncated.truncate(truncated.len() / 2);
-        let err = RgbdFrame::from_png_bytes(&colour8(64, 64), &truncated, &DepthSettings::default());
-        assert!(matches!(err, Err(FrameError::Decode { channel: Channel::Depth, .. })));
+        let err =
+            RgbdFrame::from_png_bytes(&colour8(64, 64), &truncated, &DepthSettings::default());
+        assert!(matches!(
+            err,
+            Err(FrameError::Decode {
+                channel: Channel::Depth,
+                ..
+            })
+        ));
     }
 
     #[test]
     fn out_of_range_and_invalid_raw_become_zero() {
-        let s = DepthSettings { scale: 1000.0, min_m: 0.3, max_m: 4.0, invalid_raw: Some(65535) };
+        let s = DepthSettings {
+            scale: 1000.0,
+            min_m: 0.3,
+            max_m: 4.0,
+            invalid_raw: Some(65535),
+        };
         assert_eq!(s.to_metres(65535), 0.0);
         assert_eq!(s.to_metres(100), 0.0);
         assert_eq!(s.to_metres(5000), 0.0);

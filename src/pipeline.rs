@@ -7,7 +7,9 @@
 use crate::camera::{CameraPreset, Intrinsics};
 use crate::clock::now_ms;
 use crate::frame::{DepthSettings, FrameError, RgbdFrame};
-use crate::fusion::{remove_unstable, FusionConfig, FusionStats, Integrator, Prediction, SurfelMap};
+use crate::fusion::{
+    remove_unstable, FusionConfig, FusionStats, Integrator, Prediction, SurfelMap,
+};
 use crate::preprocess::{FramePyramid, PreprocessConfig};
 use crate::track::{track, LostReason, TrackerConfig};
 use glam::DAffine3;
@@ -246,7 +248,12 @@ impl Pipeline {
         let (verdict, pose, stats) = match self.last_good {
             None => (Verdict::Initialised, DAffine3::IDENTITY, None),
             Some(previous) => {
-                let result = track(&self.pyramid, &self.prediction, &previous, &self.config.tracker);
+                let result = track(
+                    &self.pyramid,
+                    &self.prediction,
+                    &previous,
+                    &self.config.tracker,
+                );
                 match result.lost {
                     None => (Verdict::Tracked, result.world_from_camera, Some(result)),
                     Some(reason) => (Verdict::Lost(reason), previous, Some(result)),
@@ -271,7 +278,9 @@ impl Pipeline {
             let fusion_cfg = self.config.fusion;
             let map = &self.map;
             self.prediction
-                .render(map, &pose, &k, |i| fusion_cfg.predicts(map, i, index));
+                .render(map, &pose, &k, fusion_cfg.depth_gate_m, |i| {
+                    fusion_cfg.predicts(map, i, index)
+                });
             self.last_good = Some(pose);
         }
         let t4 = now_ms();

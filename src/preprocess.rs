@@ -51,13 +51,19 @@ pub struct PyramidLevel {
     pub intensity: Vec<f32>,
 }
 
-/// The preprocessed frame: pyramid for tracking, raw full-resolution vertices for fusion.
+/// The preprocessed frame: the pyramid for tracking and fusion.
+///
+/// Level 0's vertices come from the *unfiltered* depth and its normals from
+/// the bilateral-filtered depth: the filter smooths normals well but biases
+/// positions on slanted surfaces (depth is convex in pixel coordinates, so a
+/// window average over-estimates it), which would show up as drift. Coarser
+/// levels are built from the filtered depth; they only seed the finer ones.
 #[derive(Debug, Clone, Default)]
 pub struct FramePyramid {
     /// Levels, finest first.
     pub levels: Vec<PyramidLevel>,
-    /// Full-resolution vertices from the unfiltered depth, camera frame, metres.
-    pub raw_vertices: Vec<Vec3>,
+    /// Full-resolution vertices from the filtered depth (normals are computed from these).
+    filtered_vertices: Vec<Vec3>,
     /// Full-resolution colour, RGB8 interleaved.
     pub rgb: Vec<u8>,
     range_lut: Vec<f32>,
@@ -100,7 +106,7 @@ impl FramePyramid {
             .collect();
         Self {
             levels,
-            raw_vertices: vec![Vec3::ZERO; intrinsics.pixel_count()],
+            filtered_vertices: vec![Vec3::ZERO; intrinsics.pixel_count()],
             rgb: vec![0; 3 * intrinsics.pixel_count()],
             range_lut,
             spatial,
@@ -114,7 +120,6 @@ impl FramePyramid {
         };
         let w = k0.width;
         self.rgb.copy_from_slice(&frame.rgb);
-        back_project_into(&k0, &frame.depth_m, &mut self.raw_vertices);
         {
             let level0 = &mut self.levels[0];
             if config.bilateral {
@@ -134,7 +139,8 @@ impl FramePyramid {
                 .par_iter_mut()
                 .zip(frame.rgb.par_chunks_exact(3))
                 .for_each(|(i, c)| {
-                    *i = 0.299 * f32::from(c[0]) + 0.587 * f32::from(c[1]) + 0.114 * f32::from(c[2]);
+                    *i =
+                        0.299 * f32::from(c[0]) + 0.587 * f32::from(c[1]) + 0.114 * f32::from(c[2]);
                 });
         }
         for l in 1..self.levels.len() {
@@ -143,11 +149,24 @@ impl FramePyramid {
             let coarse = &mut coarse[0];
             let fw = fine.intrinsics.map_or(0, |k| k.width);
             let cw = coarse.intrinsics.map_or(0, |k| k.width);
-            downsample_depth(&fine.depth, fw, &mut coarse.depth, cw, 3.0 * config.sigma_depth_m);
+            downsample_depth(
+                &fine.depth,
+                fw,
+                &mut coarse.depth,
+                cw,
+                3.0 * config.sigma_depth_m,
+            );
             downsample_mean(&fine.intensity, fw, &mut coarse.intensity, cw);
         }
-        for level in &mut self.levels {
-            if let Some(k) = level.intrinsics {
+        for (l, level) in self.levels.iter_mut().enumerate() {
+            let Some(k) = level.intrinsics else {
+                continue;
+            };
+            if l == 0 {
+                back_project_into(&k, &level.depth, &mut self.filtered_vertices);
+                normals_into(&self.filtered_vertices, k.width, &mut level.normals);
+                back_project_into(&k, &frame.depth_m, &mut level.vertices);
+            } else {
                 back_project_into(&k, &level.depth, &mut level.vertices);
                 normals_into(&level.vertices, k.width, &mut level.normals);
             }
@@ -326,9 +345,16 @@ mod tests {
         for level in &pyr.levels {
             let k = level.intrinsics.expect("intrinsics");
             let i = (k.height / 2) * k.width + k.width / 2;
-            assert!((level.normals[i] - expected).length() < 1e-3, "{:?}", level.normals[i]);
+            assert!(
+                (level.normals[i] - expected).length() < 1e-3,
+                "{:?}",
+                level.normals[i]
+            );
             let p = level.vertices[i];
-            assert!((p.z - (2.0 + 0.5 * p.x)).abs() < 2e-3, "vertex off plane: {p:?}");
+            assert!(
+                (p.z - (2.0 + 0.5 * p.x)).abs() < 2e-3,
+                "vertex off plane: {p:?}"
+            );
         }
     }
 
@@ -336,7 +362,11 @@ mod tests {
     fn invalid_depth_stays_invalid() {
         let k = Intrinsics::new(200.0, 200.0, 79.5, 59.5, 160, 120);
         let mut frame = plane_frame(&k);
-        frame.depth_m.iter_mut().take(160 * 10).for_each(|d| *d = 0.0);
+        frame
+            .depth_m
+            .iter_mut()
+            .take(160 * 10)
+            .for_each(|d| *d = 0.0);
         let cfg = PreprocessConfig::default();
         let mut pyr = FramePyramid::new(&k, &cfg);
         pyr.build(&frame, &cfg);

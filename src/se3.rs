@@ -32,7 +32,11 @@ pub fn exp(twist: &Twist) -> DAffine3 {
     let k = skew(w);
     let k2 = k * k;
     let (a, b, c) = if theta < 1e-6 {
-        (1.0 - theta2 / 6.0, 0.5 - theta2 / 24.0, 1.0 / 6.0 - theta2 / 120.0)
+        (
+            1.0 - theta2 / 6.0,
+            0.5 - theta2 / 24.0,
+            1.0 / 6.0 - theta2 / 120.0,
+        )
     } else {
         (
             theta.sin() / theta,

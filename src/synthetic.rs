@@ -138,8 +138,9 @@ impl Scene {
     /// The default scene: a 6 x 3 x 6 m room ([`ROOM_MIN`]..[`ROOM_MAX`], world -y up,
     /// floor at y = 0) with six boxes on the floor near the walls, one of them
     /// turned 35 degrees about the vertical and one a slab tilted 25 degrees (a ramp).
-    /// The central 2.5 m x 2.5 m column of the room, 1.3..1.6 m above the
-    /// floor, stays at least 0.8 m from every surface (where [`trajectory`] runs).
+    /// Every point within 1.25 m of the room's vertical centre line and 1.3..1.6 m
+    /// above the floor is at least 0.95 m from every surface (that is where
+    /// [`trajectory`] runs).
     #[must_use]
     pub fn room() -> Self {
         let boxes = vec![
@@ -383,12 +384,12 @@ pub fn trajectory_pose(index: usize) -> DAffine3 {
 /// The first `frames` poses (world_from_camera) of a known smooth handheld-like
 /// path through [`Scene::room`]: a slow arc of radius 0.95..1.25 m around the
 /// room centre, 1.33..1.57 m above the floor, looking ahead along the arc and
-/// slightly inward, pitched down about 25-35 degrees, with up to 3 degrees of
-/// roll and a gentle pitch / yaw wobble. It moves about 1.2-1.5 cm and
-/// 0.6-0.9 degrees per frame (a handheld Kinect at 30 fps; a full turn takes
-/// about 570 frames) and stays at least 0.8 m from every surface, so depths lie
-/// in about 1.1..4.7 m (about 98 % of them under 4 m). Pose `i` is the same
-/// whatever `frames` is.
+/// slightly inward, pitched down 20..35 degrees, with up to 3 degrees of roll
+/// and a gentle pitch / yaw wobble. It moves 1.0..1.4 cm and 0.4..0.9 degrees
+/// per frame (a handheld Kinect at 30 fps; a full turn takes about 570
+/// frames) and stays at least 1.0 m from every surface, so depths lie in about
+/// 1.1..4.7 m (about 98 % of them under 4 m). Pose `i` is the same whatever
+/// `frames` is.
 #[must_use]
 pub fn trajectory(frames: usize) -> Vec<DAffine3> {
     (0..frames).map(trajectory_pose).collect()

@@ -69,7 +69,10 @@ function reportError(text) {
   status.error = text;
   status.errors.push(text);
   if (status.errors.length > 50) status.errors.shift();
-  showMessage(text, 'error');
+  // Show the latest few errors, newest last, so an earlier one is not hidden by a later one.
+  const recent = status.errors.slice(-3);
+  const more = status.errors.length > 3 ? `(${status.errors.length - 3} earlier not shown)\n` : '';
+  showMessage(more + recent.join('\n'), 'error');
   console.warn(`surfel-slam: ${text}`);
 }
 
@@ -110,7 +113,10 @@ function countRunFrame(msg) {
 
 // ---- worker ---------------------------------------------------------------------------
 
-const worker = new Worker(new URL('./worker.js', import.meta.url), { type: 'module' });
+// ?threads=0 forces the single-threaded SIMD module (for comparisons).
+const workerUrl = new URL('./worker.js', import.meta.url);
+if (new URLSearchParams(location.search).get('threads') === '0') workerUrl.searchParams.set('threads', '0');
+const worker = new Worker(workerUrl, { type: 'module' });
 worker.onerror = (e) => {
   reportError(`the worker failed: ${e.message || 'could not start (is www/pkg/ built? run scripts/build.sh)'}`);
 };
@@ -131,7 +137,7 @@ function setControls() {
 
 function fillPresetSelect() {
   ui.preset.replaceChildren(
-    ...presets.map((p) => new Option(`${p.name} (${p.width}×${p.height}, fx ${p.fx})`, p.name)),
+    ...presets.map((p) => new Option(`${p.name} (${p.width}×${p.height})`, p.name)),
     new Option('custom', 'custom'),
   );
 }
@@ -140,11 +146,13 @@ function showIntrinsics(name, overrides = {}) {
   const p = presets.find((x) => x.name === name) ?? {};
   const v = { ...p, ...overrides };
   ui.preset.value = presets.some((x) => x.name === name) ? name : 'custom';
-  ui.fx.value = v.fx ?? '';
-  ui.fy.value = v.fy ?? '';
-  ui.cx.value = v.cx ?? '';
-  ui.cy.value = v.cy ?? '';
-  ui.depthScale.value = v.depthScale ?? '';
+  // Presets arrive as f32 values (535.4000244...): show them as published.
+  const tidy = (x) => (Number.isFinite(x) ? String(Number(x.toFixed(4))) : '');
+  ui.fx.value = tidy(v.fx);
+  ui.fy.value = tidy(v.fy);
+  ui.cx.value = tidy(v.cx);
+  ui.cy.value = tidy(v.cy);
+  ui.depthScale.value = tidy(v.depthScale);
   if (v.depthMin !== undefined && v.depthMax !== undefined) views.setDepthRange(v.depthMin, Math.min(v.depthMax, 6));
 }
 
@@ -211,7 +219,9 @@ const handlers = {
     status.sequenceKind = msg.kind;
     status.frameCount = msg.frameCount;
     status.error = null;
+    status.errors = [];
     ui.message.hidden = true;
+    $('overlay-credit').hidden = msg.name !== 'tum_fr3_teddy_clip';
     clearMap();
     const { preset, ...overrides } = msg.config ?? {};
     showIntrinsics(msg.preset, overrides);
@@ -221,6 +231,7 @@ const handlers = {
   },
 
   frame(msg) {
+    const t0 = performance.now();
     stats.onFrame(msg);
     countRunFrame(msg);
     if (renderer) {
@@ -232,6 +243,11 @@ const handlers = {
     views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000);
     if (msg.done) status.done = true;
     syncStatus();
+    // How far the display trails the worker (main thread busy drawing or uploading).
+    status.displayLagMs = Math.round(performance.now() + performance.timeOrigin - msg.timing.doneAt);
+    status.uploadMs = Number((performance.now() - t0).toFixed(1));
+    status.drawMs = renderer ? Number(renderer.lastDrawMs.toFixed(1)) : 0;
+    status.gpuMs = renderer ? Math.round(renderer.gpuMs) : 0;
   },
 
   'frame-error'(msg) {
@@ -251,6 +267,7 @@ const handlers = {
 
   state(msg) {
     workerPlaying = msg.playing;
+    if (renderer) renderer.throttle = msg.playing;
     status.playing = msg.playing;
     status.done = msg.done;
     status.frameCount = msg.frameCount;

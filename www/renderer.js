@@ -155,6 +155,7 @@ class Lines {
 
   clear() {
     this.count = 0;
+    this.pending = [];
   }
 }
 
@@ -171,6 +172,13 @@ export class Renderer {
     this.count = 0;
     this.capacity = 0;
     this.buffers = {};
+    this.pending = [];
+    this.uploadedSurfels = 0;
+    this.fence = null;
+    this.fenceIssuedAt = 0;
+    this.gpuMs = 0; // how long the GPU took for the last frame (issue -> fence signalled)
+    this.lastDrawAt = 0;
+    this.throttle = false; // while SLAM runs: leave the GPU (often a CPU rasteriser) idle half the time
     this.vao = gl.createVertexArray();
     this.ensureCapacity(1 << 16);
 
@@ -197,6 +205,7 @@ export class Renderer {
     this.bounds = null; // running bounding box of received surfels
 
     this.dirty = true;
+    this.lastDrawMs = 0;
     this.installControls();
     this.frameLoop = this.frameLoop.bind(this);
     requestAnimationFrame(this.frameLoop);
@@ -228,21 +237,38 @@ export class Renderer {
     this.capacity = capacity;
   }
 
-  /** Applies one frame's changed surfel range ({count, start, end, positions, ...}). */
+  /**
+   * Queues one frame's changed surfel range ({count, start, end, positions, ...}).
+   * Uploads happen just before the next draw, so frames that arrive while the
+   * GPU is still busy are coalesced (a range covered by a later one is skipped).
+   */
   updateSurfels(chunk) {
+    this.pending.push(chunk);
+    if (chunk.end > chunk.start) this.growBounds(chunk.positions);
+    this.dirty = true;
+  }
+
+  flushUploads() {
+    const list = this.pending;
+    if (list.length === 0) return;
+    this.pending = [];
     const gl = this.gl;
-    this.ensureCapacity(Math.max(chunk.count, chunk.end));
-    const n = chunk.end - chunk.start;
-    if (n > 0) {
+    const last = list[list.length - 1];
+    this.ensureCapacity(Math.max(...list.map((c) => Math.max(c.count, c.end))));
+    for (let i = 0; i < list.length; i++) {
+      const c = list[i];
+      if (c.end <= c.start) continue;
+      let covered = false;
+      for (let j = i + 1; j < list.length && !covered; j++) covered = list[j].start <= c.start && list[j].end >= c.end;
+      if (covered) continue;
       ATTRIBUTES.forEach(([name, components, , bytes]) => {
         gl.bindBuffer(gl.ARRAY_BUFFER, this.buffers[name]);
-        gl.bufferSubData(gl.ARRAY_BUFFER, chunk.start * components * bytes, chunk[name]);
+        gl.bufferSubData(gl.ARRAY_BUFFER, c.start * components * bytes, c[name]);
       });
-      gl.bindBuffer(gl.ARRAY_BUFFER, null);
-      this.growBounds(chunk.positions);
+      this.uploadedSurfels += c.end - c.start;
     }
-    this.count = chunk.count;
-    this.dirty = true;
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
+    this.count = last.count;
   }
 
   growBounds(positions) {
@@ -264,6 +290,7 @@ export class Renderer {
 
   clear() {
     this.count = 0;
+    this.pending = [];
     this.bounds = null;
     this.trajectory.clear();
     this.groundTruth.clear();
@@ -368,7 +395,7 @@ export class Renderer {
       // Just behind and above the tracked camera, looking where it looks.
       const glFromCv = new Float64Array([1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1]);
       const back = Math.max(0.2, this.sceneSize() * 0.12);
-      const offset = new Float64Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, back * 0.35, -back, 1]);
+      const offset = new Float64Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, -back * 0.35, -back, 1]);
       return multiply(glFromCv, invertRigid(multiply(this.currentPose, offset)));
     }
     return lookAt(this.eye(), this.target, this.basis.up);
@@ -497,12 +524,27 @@ export class Renderer {
   }
 
   frameLoop() {
-    this.resize();
-    if (this.dirty) {
-      this.dirty = false;
-      this.draw();
-    }
     requestAnimationFrame(this.frameLoop);
+    const gl = this.gl;
+    this.resize();
+    if (this.fence) {
+      // Backpressure: never queue a new frame while the GPU still works on the last one.
+      if (gl.getSyncParameter(this.fence, gl.SYNC_STATUS) !== gl.SIGNALED) return;
+      gl.deleteSync(this.fence);
+      this.fence = null;
+      this.gpuMs = performance.now() - this.fenceIssuedAt;
+    }
+    if (!this.dirty) return;
+    const now = performance.now();
+    if (this.throttle && now - this.lastDrawAt < this.gpuMs) return;
+    this.dirty = false;
+    this.lastDrawAt = now;
+    this.flushUploads();
+    this.draw();
+    this.lastDrawMs = performance.now() - now;
+    this.fence = gl.fenceSync(gl.SYNC_GPU_COMMANDS_COMPLETE, 0);
+    this.fenceIssuedAt = now;
+    gl.flush();
   }
 
   draw() {

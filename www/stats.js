@@ -91,7 +91,7 @@ export class Stats {
       ...STAGES.slice(0, -1).map((s) => [`\u2003${s}`, f1(this.stageMs[s])]),
       ['ms / frame (worker)', f1(this.wallMs)],
       ['changed surfels', this.changed === undefined ? '–' : this.changed.toLocaleString('en-US')],
-      ['ATE rmse', this.ate === null ? '–' : `${(this.ate * 100).toFixed(1)} cm (${this.atePairs} poses)`],
+      ['ATE rmse', this.ate === null ? '–' : `${(this.ate * 100).toFixed(this.ate < 0.01 ? 2 : 1)} cm (${this.atePairs} poses)`],
     ];
     this.table.replaceChildren(
       ...rows.map(([k, v]) => {

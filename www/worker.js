@@ -35,7 +35,10 @@ function serial(job) {
 
 async function initModule() {
   const notes = [];
-  if (self.crossOriginIsolated) {
+  const forceSingle = new URL(self.location.href).searchParams.get('threads') === '0';
+  if (forceSingle) {
+    notes.push('threads=0 in the page URL: using the single-threaded SIMD module');
+  } else if (self.crossOriginIsolated) {
     try {
       const m = await import('./pkg/threads/surfel_slam.js');
       await m.default();
@@ -177,11 +180,15 @@ function startPrefetch(index) {
 /** Names the file concerned in an error from pushFrame. */
 function describeFrameError(frame, message) {
   if (message.includes(frame.depth) || message.includes(frame.colour)) return message;
+  // The module's messages start with what they are about ("depth image must be ...").
+  const head = message.trimStart().toLowerCase();
+  if (head.startsWith('depth')) return `${frame.depth}: ${message}`;
+  if (head.startsWith('colour') || head.startsWith('color')) return `${frame.colour}: ${message}`;
   const depth = /depth/i.test(message);
   const colour = /colou?r/i.test(message);
   if (depth && !colour) return `${frame.depth}: ${message}`;
   if (colour && !depth) return `${frame.colour}: ${message}`;
-  return `frame ${frame.index ?? ''} (${frame.colour}, ${frame.depth}): ${message}`;
+  return `${frame.colour} + ${frame.depth}: ${message}`;
 }
 
 async function processNext() {

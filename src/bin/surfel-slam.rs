@@ -12,7 +12,11 @@ use surfel_slam::{CameraPreset, Pipeline, SlamConfig, Verdict};
 const MAX_DT: f64 = 0.02;
 
 #[derive(Parser)]
-#[command(name = "surfel-slam", version, about = "Dense RGB-D SLAM with surfel fusion")]
+#[command(
+    name = "surfel-slam",
+    version,
+    about = "Dense RGB-D SLAM with surfel fusion"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -5,6 +5,13 @@
 //! `supersampling = 1` it is the z-buffer behind the model prediction. Each
 //! cell holds `(depth bits << 32) | surfel index`, so an atomic `fetch_min`
 //! keeps the nearest surfel while all surfels are splatted in parallel.
+//!
+//! With a `confidence_band_m`, a second pass keeps, per cell, the most
+//! confident surfel within that depth of the nearest one. Picking the nearest
+//! of several overlapping noisy surfels picks the one whose noise pulls it
+//! towards the camera, so the predicted surface would sit in front of the
+//! true one and tracking against it would drift; confidence is not
+//! correlated with that noise.
 
 use crate::camera::Intrinsics;
 use crate::fusion::SurfelMap;
@@ -63,6 +70,30 @@ pub struct IndexMap {
     /// Height in cells.
     pub height: usize,
     cells: Vec<AtomicU64>,
+    confident: Vec<AtomicU64>,
+}
+
+/// Depth and cell index of surfel `i`'s centre in the view, or `None` if not visible.
+#[inline]
+fn cell_of(
+    map: &SurfelMap,
+    i: usize,
+    camera_from_world: &RigidF32,
+    k: &Intrinsics,
+    s: f32,
+    (w, h): (usize, usize),
+) -> Option<(f32, usize)> {
+    let p = camera_from_world.point(map.positions[i]);
+    if p.z <= 0.0 {
+        return None;
+    }
+    let px = k.project(p);
+    let cu = ((px.x + 0.5) * s).floor();
+    let cv = ((px.y + 0.5) * s).floor();
+    if !(cu >= 0.0 && cv >= 0.0 && cu < w as f32 && cv < h as f32) {
+        return None;
+    }
+    Some((p.z, cv as usize * w + cu as usize))
 }
 
 impl IndexMap {
@@ -77,52 +108,65 @@ impl IndexMap {
         }
     }
 
-    /// Splats the surfels selected by `include` into the view `camera_from_world`.
-    ///
-    /// `splat` true covers the surfel's disk (radius projected to pixels, at most
-    /// 2 px); false writes only the centre's cell.
+    /// Projects the centres of the surfels selected by `include` into the view
+    /// `camera_from_world`, one cell each. With `confidence_band_m`, each cell
+    /// ends up with the most confident surfel within that depth of the
+    /// nearest one instead of the nearest.
     pub fn render(
         &mut self,
         map: &SurfelMap,
         camera_from_world: &RigidF32,
         k: &Intrinsics,
-        splat: bool,
+        confidence_band_m: Option<f32>,
         include: impl Fn(usize) -> bool + Sync,
     ) {
         self.cells
             .par_iter()
             .for_each(|c| c.store(EMPTY, Ordering::Relaxed));
         let s = self.supersampling as f32;
-        let (w, h) = (self.width as i64, self.height as i64);
+        let size = (self.width, self.height);
         let cells = &self.cells;
-        let focal = k.focal_abs();
         (0..map.len()).into_par_iter().for_each(|i| {
             if !include(i) {
                 return;
             }
-            let p = camera_from_world.point(map.positions[i]);
-            if p.z <= 0.0 {
-                return;
-            }
-            let px = k.project(p);
-            let cu = ((px.x + 0.5) * s).floor();
-            let cv = ((px.y + 0.5) * s).floor();
-            if !(cu >= 0.0 && cv >= 0.0 && cu < w as f32 && cv < h as f32) {
-                return;
-            }
-            let key = (u64::from(p.z.to_bits()) << 32) | i as u64;
-            let (cu, cv) = (cu as i64, cv as i64);
-            let reach = if splat {
-                ((map.radii[i] * focal / p.z * s).min(2.0 * s) - 0.5).max(0.0) as i64
-            } else {
-                0
-            };
-            for y in (cv - reach).max(0)..=(cv + reach).min(h - 1) {
-                for x in (cu - reach).max(0)..=(cu + reach).min(w - 1) {
-                    cells[(y * w + x) as usize].fetch_min(key, Ordering::Relaxed);
-                }
+            if let Some((z, cell)) = cell_of(map, i, camera_from_world, k, s, size) {
+                cells[cell].fetch_min((u64::from(z.to_bits()) << 32) | i as u64, Ordering::Relaxed);
             }
         });
+        let Some(band) = confidence_band_m else {
+            return;
+        };
+        if self.confident.len() != self.cells.len() {
+            self.confident = (0..self.cells.len()).map(|_| AtomicU64::new(0)).collect();
+        }
+        self.confident
+            .par_iter()
+            .for_each(|c| c.store(0, Ordering::Relaxed));
+        let confident = &self.confident;
+        (0..map.len()).into_par_iter().for_each(|i| {
+            if !include(i) {
+                return;
+            }
+            let Some((z, cell)) = cell_of(map, i, camera_from_world, k, s, size) else {
+                return;
+            };
+            let nearest = f32::from_bits((cells[cell].load(Ordering::Relaxed) >> 32) as u32);
+            if z <= nearest + band {
+                // Confidences are positive, so their bit patterns order like the values.
+                let key = (u64::from(map.confidences[i].max(0.0).to_bits()) << 32) | i as u64;
+                confident[cell].fetch_max(key, Ordering::Relaxed);
+            }
+        });
+        // Publish the confident choice as the cell's surfel (depth bits are not used after this).
+        self.cells
+            .par_iter()
+            .zip(self.confident.par_iter())
+            .for_each(|(c, f)| {
+                if c.load(Ordering::Relaxed) != EMPTY {
+                    c.store(f.load(Ordering::Relaxed) & 0xffff_ffff, Ordering::Relaxed);
+                }
+            });
     }
 
     /// The surfel index stored in cell (x, y), if any.

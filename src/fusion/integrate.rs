@@ -63,7 +63,7 @@ impl Integrator {
         let world_from_camera_f = RigidF32::from_affine(world_from_camera);
         self.index.resize(k, config.index_supersampling);
         self.index
-            .render(map, &camera_from_world, k, false, |_| true);
+            .render(map, &camera_from_world, k, None, |_| true);
 
         let w = k.width;
         let s = self.index.supersampling;
@@ -77,7 +77,7 @@ impl Integrator {
             .for_each(|(v, row)| {
                 for (u, decision) in row.iter_mut().enumerate() {
                     let i = v * w + u;
-                    let p = pyramid.raw_vertices[i];
+                    let p = level0.vertices[i];
                     let n = level0.normals[i];
                     *decision = if p.z <= 0.0 || n == Vec3::ZERO {
                         Decision::Skip
@@ -106,7 +106,7 @@ impl Integrator {
                 continue;
             }
             let (u, v) = ((i % w) as f32, (i / w) as f32);
-            let p = pyramid.raw_vertices[i];
+            let p = level0.vertices[i];
             let n_cam = level0.normals[i];
             let gamma = (glam::Vec2::new(u, v) - centre).length() / centre_norm;
             let weight = (-(gamma * gamma) / (2.0 * config.confidence_sigma.powi(2))).exp();

@@ -42,7 +42,7 @@ impl Default for FusionConfig {
             depth_gate_m: 0.05,
             normal_gate_deg: 20.0,
             confidence_sigma: 0.6,
-            stable_confidence: 10.0,
+            stable_confidence: 5.0,
             unstable_max_age: 20,
             warmup_frames: 10,
             index_supersampling: 4,

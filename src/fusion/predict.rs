@@ -1,4 +1,4 @@
-//! Model prediction: the stable surfels rendered into a camera pose, giving
+//! Model prediction: the stable surfels projected into a camera pose, giving
 //! per-pixel vertex, normal and colour maps (world frame) that the next
 //! frame's tracker aligns against (frame-to-model tracking).
 
@@ -27,12 +27,14 @@ pub struct Prediction {
 }
 
 impl Prediction {
-    /// Renders the surfels selected by `include` into the view `world_from_camera`.
+    /// Renders the surfels selected by `include` into the view `world_from_camera`;
+    /// per pixel, the most confident surfel within `depth_band_m` of the nearest.
     pub fn render(
         &mut self,
         map: &SurfelMap,
         world_from_camera: &DAffine3,
         k: &Intrinsics,
+        depth_band_m: f32,
         include: impl Fn(usize) -> bool + Sync,
     ) {
         let n = k.pixel_count();
@@ -43,7 +45,11 @@ impl Prediction {
         self.world_from_camera = *world_from_camera;
         self.intrinsics = Some(*k);
         let camera_from_world = RigidF32::from_affine(&world_from_camera.inverse());
-        self.index.render(map, &camera_from_world, k, true, include);
+        // One pixel per surfel, no splats: overlapping splats of noisy surfels
+        // would again select by noise (measured: 22 cm vs 1.4 cm ATE on the
+        // noisy synthetic room, 0.94 vs 0.75 cm on TUM fr3/teddy).
+        self.index
+            .render(map, &camera_from_world, k, Some(depth_band_m), include);
         let w = k.width;
         let index = &self.index;
         self.valid = self

@@ -115,7 +115,13 @@ pub fn track(
         let stride = 1 << level;
         for _ in 0..config.iterations[level] {
             let t = RigidF32::from_affine(&camera_from_world);
-            last = icp_step(prediction, stride, &pyramid.levels[level], &t, &config.gates);
+            last = icp_step(
+                prediction,
+                stride,
+                &pyramid.levels[level],
+                &t,
+                &config.gates,
+            );
             if last.system.count < 6 {
                 break;
             }
@@ -138,8 +144,13 @@ pub fn track(
     let inliers = sys.count;
     let inlier_ratio = inliers as f64 / last.candidates.max(1) as f64;
     let residual_rms_m = (sys.cost / inliers.max(1) as f64).sqrt();
-    let conditioning = if inliers >= 6 { sys.conditioning() } else { 0.0 };
-    let (dt, dr) = se3::motion_magnitude(&(initial_world_from_camera.inverse() * world_from_camera));
+    let conditioning = if inliers >= 6 {
+        sys.conditioning()
+    } else {
+        0.0
+    };
+    let (dt, dr) =
+        se3::motion_magnitude(&(initial_world_from_camera.inverse() * world_from_camera));
     let lost = if inliers < config.min_inliers || inlier_ratio < config.min_inlier_ratio {
         Some(LostReason::TooFewInliers)
     } else if conditioning < config.min_conditioning {

@@ -13,6 +13,76 @@ use crate::dataset::DatasetKind;
 use crate::frame::DepthSettings;
 use crate::pipeline::{FrameReport, SlamConfig, Verdict};
 
+#[wasm_bindgen(typescript_custom_section)]
+const TS_TYPES: &'static str = r#"
+/** Camera and tracking settings for `new Slam(config)`; fields override the preset. */
+export interface SlamConfig {
+  preset?: 'tum-fr1' | 'tum-fr2' | 'tum-fr3' | 'icl-nuim' | '7-scenes';
+  fx?: number; fy?: number; cx?: number; cy?: number; width?: number; height?: number;
+  /** Raw depth units per metre. */
+  depthScale?: number;
+  /** Valid depth range, metres. */
+  depthMin?: number; depthMax?: number;
+  /** Raw depth value meaning "no measurement" besides 0 (7-Scenes: 65535). */
+  depthInvalid?: number;
+  bilateral?: boolean;
+  pyramidLevels?: number;
+  /** Gauss-Newton iterations per pyramid level, finest first. */
+  iterations?: number[];
+  icpDistance?: number; icpNormalDeg?: number;
+  minInliers?: number; minInlierRatio?: number; maxResidual?: number;
+  stableConfidence?: number;
+}
+
+export interface Preset {
+  name: string; fx: number; fy: number; cx: number; cy: number; width: number; height: number;
+  depthScale: number; depthMin: number; depthMax: number;
+}
+
+/** What happened to one frame (`pushFrame` / `pushRaw`). */
+export interface FrameReport {
+  index: number;
+  timestamp: number;
+  verdict: 'initialised' | 'tracked' | 'lost';
+  lostReason: null | 'too-few-inliers' | 'high-residual' | 'ill-conditioned' | 'implausible-motion';
+  /** world_from_camera, 4x4 column-major, metres. */
+  pose: Float64Array;
+  translation: [number, number, number];
+  /** Unit quaternion [x, y, z, w], w >= 0. */
+  quaternion: [number, number, number, number];
+  inliers: number; inlierRatio: number;
+  /** RMS point-to-plane residual, metres. */
+  residual: number;
+  conditioning: number;
+  surfels: number; merged: number; added: number; removed: number;
+  /** Milliseconds per stage. */
+  timings: { decode: number; preprocess: number; track: number; fuse: number; predict: number; total: number };
+}
+
+export interface Layout {
+  kind: 'tum' | 'icl-nuim' | '7-scenes';
+  indexFiles: string[];
+  rootPrefix: string;
+}
+
+export interface SequenceFrame {
+  index: number; timestamp: number; colour: string; depth: string; poseFile: string | null;
+}
+
+export interface Sequence {
+  kind: 'tum' | 'icl-nuim' | '7-scenes';
+  preset: string;
+  frames: SequenceFrame[];
+  /** [t, tx, ty, tz, qx, qy, qz, qw] rows, world_from_camera. */
+  groundTruth: number[][];
+  /** The ground truth as TUM text, '' when there is none. */
+  groundTruthTum: string;
+}
+
+/** Absolute trajectory error after rigid alignment, metres. */
+export interface Ate { rmse: number; mean: number; median: number; max: number; pairs: number }
+"#;
+
 /// Sets `object[key] = value` (cannot fail on a plain object).
 pub fn set(object: &Object, key: &str, value: impl Into<JsValue>) {
     let _ = Reflect::set(object, &JsValue::from_str(key), &value.into());
@@ -118,18 +188,20 @@ impl Fields<'_> {
     fn boolean(&self, key: &str) -> Result<Option<bool>, String> {
         match self.get(key) {
             None => Ok(None),
-            Some(v) => v.as_bool().map(Some).ok_or_else(|| {
-                format!("config.{key} must be true or false, got {}", describe(&v))
-            }),
+            Some(v) => v
+                .as_bool()
+                .map(Some)
+                .ok_or_else(|| format!("config.{key} must be true or false, got {}", describe(&v))),
         }
     }
 
     fn string(&self, key: &str) -> Result<Option<String>, String> {
         match self.get(key) {
             None => Ok(None),
-            Some(v) => v.as_string().map(Some).ok_or_else(|| {
-                format!("config.{key} must be a string, got {}", describe(&v))
-            }),
+            Some(v) => v
+                .as_string()
+                .map(Some)
+                .ok_or_else(|| format!("config.{key} must be a string, got {}", describe(&v))),
         }
     }
 }
@@ -141,7 +213,9 @@ fn describe(v: &JsValue) -> String {
     } else if let Some(x) = v.as_f64() {
         format!("{x}")
     } else {
-        v.js_typeof().as_string().unwrap_or_else(|| "a value".into())
+        v.js_typeof()
+            .as_string()
+            .unwrap_or_else(|| "a value".into())
     }
 }
 
@@ -160,9 +234,8 @@ fn preset_names() -> String {
 /// is validated by `Pipeline::new`.
 pub fn slam_config_from_js(config: &JsValue) -> Result<SlamConfig, String> {
     if let Some(name) = config.as_string() {
-        let preset = CameraPreset::from_name(&name).ok_or_else(|| {
-            format!("unknown preset {name:?}; known presets: {}", preset_names())
-        })?;
+        let preset = CameraPreset::from_name(&name)
+            .ok_or_else(|| format!("unknown preset {name:?}; known presets: {}", preset_names()))?;
         return Ok(SlamConfig::from_preset(preset));
     }
     if !config.is_object() || Array::is_array(config) {

@@ -15,8 +15,10 @@ use crate::eval;
 /// file names (e.g. `webkitRelativePath`). Returns `{ kind, indexFiles,
 /// rootPrefix }` with kind `'tum' | 'icl-nuim' | '7-scenes'`; throws if the
 /// layout is not recognised.
-#[wasm_bindgen(js_name = detectLayout)]
-pub fn detect_layout(file_names: JsValue) -> Result<JsValue, JsError> {
+#[wasm_bindgen(js_name = detectLayout, unchecked_return_type = "Layout")]
+pub fn detect_layout(
+    #[wasm_bindgen(js_name = "fileNames", unchecked_param_type = "string[]")] file_names: JsValue,
+) -> Result<JsValue, JsError> {
     let names = strings_from_js(&file_names, "fileNames").map_err(|m| JsError::new(&m))?;
     let layout = dataset::detect_layout(&names).map_err(|e| JsError::new(&e.to_string()))?;
     let index_files: Array = layout
@@ -38,10 +40,15 @@ pub fn detect_layout(file_names: JsValue) -> Result<JsValue, JsError> {
 /// depth, poseFile}], groundTruth: [[t, tx, ty, tz, qx, qy, qz, qw], ...],
 /// groundTruthTum }` (paths as in `fileNames`; `groundTruthTum` is the ground
 /// truth as TUM text, `''` when there is none).
-#[wasm_bindgen(js_name = parseSequence)]
+#[wasm_bindgen(js_name = parseSequence, unchecked_return_type = "Sequence")]
 pub fn parse_sequence(
-    file_names: JsValue,
+    #[wasm_bindgen(js_name = "fileNames", unchecked_param_type = "string[]")] file_names: JsValue,
+    #[wasm_bindgen(
+        js_name = "indexTexts",
+        unchecked_param_type = "Record<string, string>"
+    )]
     index_texts: JsValue,
+    #[wasm_bindgen(js_name = "nameHint", unchecked_optional_param_type = "string")]
     name_hint: JsValue,
 ) -> Result<JsValue, JsError> {
     let name_hint = name_hint.as_string();
@@ -110,11 +117,11 @@ pub fn parse_sequence(
 /// error after rigid alignment, metres: `{ rmse, mean, median, max, pairs }`.
 /// Poses are matched by nearest timestamp within `maxDt` (seconds for TUM;
 /// ICL-NUIM and 7-Scenes frame numbers match exactly).
-#[wasm_bindgen(js_name = ateTum)]
+#[wasm_bindgen(js_name = ateTum, unchecked_return_type = "Ate")]
 pub fn ate_tum(
-    estimate_tum: &str,
-    ground_truth_tum: &str,
-    max_dt: Option<f64>,
+    #[wasm_bindgen(js_name = "estimateTum")] estimate_tum: &str,
+    #[wasm_bindgen(js_name = "groundTruthTum")] ground_truth_tum: &str,
+    #[wasm_bindgen(js_name = "maxDt")] max_dt: Option<f64>,
 ) -> Result<JsValue, JsError> {
     let max_dt = max_dt.unwrap_or(0.02);
     if !(max_dt.is_finite() && max_dt >= 0.0) {

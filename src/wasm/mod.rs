@@ -31,7 +31,7 @@ pub use wasm_bindgen_rayon::init_thread_pool;
 /// Runs once when the module is instantiated (and once per worker in the
 /// threaded build): readable panic messages in the console.
 #[wasm_bindgen(start)]
-pub fn start() {
+fn start() {
     console_error_panic_hook::set_once();
 }
 
@@ -45,7 +45,7 @@ pub fn thread_count() -> u32 {
 
 /// The camera presets with their intrinsics and depth settings:
 /// `[{name, fx, fy, cx, cy, width, height, depthScale, depthMin, depthMax}, ...]`.
-#[wasm_bindgen]
+#[wasm_bindgen(unchecked_return_type = "Preset[]")]
 #[must_use]
 pub fn presets() -> js_sys::Array {
     crate::CameraPreset::ALL

@@ -78,7 +78,9 @@ impl Slam {
     /// depthScale, depthMin, depthMax, ... }` (fields override the preset) or
     /// a preset name. Throws an Error naming the problem on a bad config.
     #[wasm_bindgen(constructor)]
-    pub fn new(config: JsValue) -> Result<Slam, JsError> {
+    pub fn new(
+        #[wasm_bindgen(unchecked_param_type = "SlamConfig | string")] config: JsValue,
+    ) -> Result<Slam, JsError> {
         let cfg = slam_config_from_js(&config).map_err(|m| JsError::new(&m))?;
         let pipeline = Pipeline::new(cfg).map_err(|e| js_error(&e))?;
         Ok(Slam { pipeline })
@@ -86,7 +88,7 @@ impl Slam {
 
     /// Decodes a colour image (PNG or JPEG) and a 16-bit depth PNG and
     /// processes the frame. Throws (and changes nothing) on bad bytes.
-    #[wasm_bindgen(js_name = pushFrame)]
+    #[wasm_bindgen(js_name = pushFrame, unchecked_return_type = "FrameReport")]
     pub fn push_frame(
         &mut self,
         colour: &[u8],
@@ -104,7 +106,7 @@ impl Slam {
     /// Processes a decoded frame: `rgba` is RGBA8 (or RGB8) row-major,
     /// `depth` raw units (`depthScale` per metre, 0 = none). Throws (and
     /// changes nothing) on wrong sizes.
-    #[wasm_bindgen(js_name = pushRaw)]
+    #[wasm_bindgen(js_name = pushRaw, unchecked_return_type = "FrameReport")]
     pub fn push_raw(
         &mut self,
         width: u32,
@@ -175,7 +177,7 @@ impl Slam {
 
     /// `[start, end]`: surfel indices added, merged or moved since the last
     /// call (re-upload this range and draw `surfelCount` surfels).
-    #[wasm_bindgen(js_name = takeChangedRange)]
+    #[wasm_bindgen(js_name = takeChangedRange, unchecked_return_type = "[number, number]")]
     pub fn take_changed_range(&mut self) -> Array {
         let range = self.pipeline.take_changed_range();
         Array::of2(

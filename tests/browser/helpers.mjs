@@ -12,6 +12,8 @@ export const REPO = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '
 export const SHARED_DATA = path.resolve(REPO, '../shared/data');
 export const SCREENSHOTS = path.join(REPO, 'target', 'browser-screenshots');
 export const CHROMIUM = process.env.CHROMIUM_PATH || '/usr/bin/chromium';
+// The directory served (default www/); override to test another build of the page.
+export const WWW = process.env.SURFEL_SLAM_WWW ? path.resolve(process.env.SURFEL_SLAM_WWW) : path.join(REPO, 'www');
 
 export const CHROMIUM_ARGS = [
   '--no-sandbox',
@@ -24,10 +26,22 @@ export const CHROMIUM_ARGS = [
   '--enable-unsafe-swiftshader',
 ];
 
+/**
+ * Skips the test (returns true) when Chromium or the built module is missing;
+ * under CI (env CI set) that is a failure instead, so CI cannot pass vacuously.
+ */
+export function skipUnlessReady(t) {
+  const missing = missingPrerequisite();
+  if (!missing) return false;
+  if (process.env.CI) throw new Error(`browser test cannot run: ${missing}`);
+  t.skip(missing);
+  return true;
+}
+
 /** Why the browser tests cannot run here, or null. */
 export function missingPrerequisite() {
   if (!fs.existsSync(CHROMIUM)) return `no Chromium at ${CHROMIUM} (set CHROMIUM_PATH)`;
-  if (!fs.existsSync(path.join(REPO, 'www/pkg/surfel_slam.js'))) return 'www/pkg/ is not built: run `bash scripts/build.sh`';
+  if (!fs.existsSync(path.join(WWW, 'pkg/surfel_slam.js'))) return `${WWW}/pkg/ is not built: run \`bash scripts/build.sh\``;
   return null;
 }
 
@@ -36,7 +50,7 @@ export function missingPrerequisite() {
  * `close()` shuts both down and removes the profile directory.
  */
 export async function startBrowser() {
-  const server = await startServer({ port: 0 });
+  const server = await startServer({ port: 0, root: WWW });
   const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'surfel-slam-chromium-'));
   let context;
   try {

@@ -12,18 +12,14 @@ import {
   decodePng,
   imageStats,
   saveScreenshot,
-  missingPrerequisite,
+  skipUnlessReady,
 } from './helpers.mjs';
 
 const MIN_FRAMES = 40; // of the sample's 44
 const MAX_LOST = 2;
 
 test('bundled sample plays with the threaded module and draws the map', { timeout: 300_000 }, async (t) => {
-  const missing = missingPrerequisite();
-  if (missing) {
-    t.skip(missing);
-    return;
-  }
+  if (skipUnlessReady(t)) return;
   const env = await startBrowser();
   try {
     const { page, requests, consoleErrors } = await openPage(env, '/');

@@ -17,7 +17,7 @@ import {
   encodeGreyPng,
   makeTumClip,
   saveScreenshot,
-  missingPrerequisite,
+  skipUnlessReady,
 } from './helpers.mjs';
 
 const ICL = path.join(SHARED_DATA, 'icl_office_kt0');
@@ -46,8 +46,7 @@ function makeIclClip(n) {
 const chooseFolder = (page, dir) => page.locator('#folder-input').setInputFiles(dir);
 
 test('a folder uploaded through the file input is tracked and fused', { timeout: 300_000 }, async (t) => {
-  const missing = missingPrerequisite();
-  if (missing) return t.skip(missing);
+  if (skipUnlessReady(t)) return;
   if (!fs.existsSync(ICL)) return t.skip(`${ICL} is absent (needs ../shared/data beside the checkout)`);
   const clip = makeIclClip(ICL_FRAMES);
   const env = await startBrowser();
@@ -83,8 +82,7 @@ test('a folder uploaded through the file input is tracked and fused', { timeout:
 });
 
 test('bad frames and bad folders give a clear message and keep the map', { timeout: 300_000 }, async (t) => {
-  const missing = missingPrerequisite();
-  if (missing) return t.skip(missing);
+  if (skipUnlessReady(t)) return;
   // The bundled sample is part of the repo, so this test never needs ../shared.
   const clip = makeTumClip(path.join(REPO, 'www/sample/tum_fr3_teddy_clip'), 6, 'rgbd_dataset_freiburg3_broken');
   const badDepth = clip.depth[1]; // second frame: 8-bit depth

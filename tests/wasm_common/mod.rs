@@ -32,6 +32,12 @@ pub const REAL_FRAMES: usize = 10;
 /// Real sequence used, under `../shared/data/`.
 pub const REAL_SEQUENCE: &str = "icl_office_kt0";
 
+/// ATE bound of the synthetic sequence (noise-free: tracking should be
+/// near-exact), metres.
+pub const SYNTHETIC_ATE_BOUND_M: f64 = 0.005;
+/// ATE bound of the first ICL-NUIM frames (noise-free renderings), metres.
+pub const REAL_ATE_BOUND_M: f64 = 0.005;
+
 /// Poses may differ by this much between native and wasm (metres).
 /// Both run the same f32/f64 code with the same reduction order; what can
 /// differ is the last bit of libm functions (`exp`, `atan2`, ...).
@@ -103,8 +109,7 @@ pub fn read_reference(
             text.lines().next().unwrap_or("")
         )
     })?;
-    surfel_slam::dataset::trajectory::parse_tum(body, "native reference")
-        .map_err(|e| e.to_string())
+    surfel_slam::dataset::trajectory::parse_tum(body, "native reference").map_err(|e| e.to_string())
 }
 
 /// One synthetic frame as a caller with decoded buffers has it.
@@ -122,8 +127,8 @@ pub struct RawFrame {
 }
 
 /// The synthetic sequence (`surfel_slam::synthetic`: the room, its known
-/// trajectory, Kinect-like noise, 320x240): config, frames, ground truth
-/// (`world_from_camera`).
+/// trajectory, no noise (exact depth quantised to 1/5000 m), 320x240):
+/// config, frames, ground truth (`world_from_camera`).
 pub fn synthetic_sequence() -> (SlamConfig, Vec<RawFrame>, Vec<(f64, DAffine3)>) {
     let intrinsics = synthetic::default_intrinsics().half();
     let depth = DepthSettings {
@@ -136,7 +141,7 @@ pub fn synthetic_sequence() -> (SlamConfig, Vec<RawFrame>, Vec<(f64, DAffine3)>)
     config.intrinsics = intrinsics;
     config.depth = depth;
     let scene = synthetic::Scene::room();
-    let noise = synthetic::NoiseModel::kinect();
+    let noise = synthetic::NoiseModel::none();
     let mut frames = Vec::new();
     let mut ground_truth = Vec::new();
     for (i, pose) in synthetic::trajectory(SYNTHETIC_FRAMES).iter().enumerate() {
@@ -161,10 +166,7 @@ pub fn synthetic_sequence() -> (SlamConfig, Vec<RawFrame>, Vec<(f64, DAffine3)>)
 
 /// Largest translation (m) and rotation (rad) difference between two
 /// trajectories of equal length and timestamps.
-pub fn max_difference(
-    a: &[(f64, DAffine3)],
-    b: &[(f64, DAffine3)],
-) -> Result<(f64, f64), String> {
+pub fn max_difference(a: &[(f64, DAffine3)], b: &[(f64, DAffine3)]) -> Result<(f64, f64), String> {
     if a.len() != b.len() {
         return Err(format!("{} poses vs {} poses", a.len(), b.len()));
     }

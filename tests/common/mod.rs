@@ -1,0 +1,88 @@
+//! Helpers shared by the integration tests: synthetic sequences and the real
+//! datasets in ../shared/data (skipped with a message when absent).
+
+#![allow(dead_code)]
+
+use glam::DAffine3;
+use std::path::PathBuf;
+use surfel_slam::dataset::{read_frame, Sequence};
+use surfel_slam::synthetic::{self, NoiseModel, Scene};
+use surfel_slam::{DepthSettings, FrameReport, Intrinsics, Pipeline, SlamConfig, Verdict};
+
+/// A real dataset folder under ../shared/data, or `None` (with a message) when absent.
+pub fn shared_dataset(name: &str) -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(name);
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!(
+            "skipping: {} not found (../shared/data is absent)",
+            dir.display()
+        );
+        None
+    }
+}
+
+/// Config for synthetic frames rendered with `k` (5000 units/m, 0.3..8 m).
+pub fn synthetic_config(k: Intrinsics) -> SlamConfig {
+    let mut config = SlamConfig::from_preset(surfel_slam::CameraPreset::TumFr3);
+    config.intrinsics = k;
+    config.depth = DepthSettings {
+        scale: synthetic::DEPTH_UNITS_PER_METRE,
+        min_m: 0.3,
+        max_m: 8.0,
+        invalid_raw: None,
+    };
+    config
+}
+
+/// Runs the synthetic room along its known trajectory; returns the pipeline,
+/// the reports and the ground truth expressed in the first camera's frame
+/// (the pipeline's world).
+pub fn run_synthetic(
+    k: Intrinsics,
+    frames: usize,
+    noise: NoiseModel,
+) -> (Pipeline, Vec<FrameReport>, Vec<(f64, DAffine3)>) {
+    let scene = Scene::room();
+    let poses = synthetic::trajectory(frames);
+    let config = synthetic_config(k);
+    let mut slam = Pipeline::new(config.clone()).expect("valid config");
+    let origin_inv = poses[0].inverse();
+    let mut reports = Vec::new();
+    let mut truth = Vec::new();
+    for (i, pose) in poses.iter().enumerate() {
+        let rendered = synthetic::render(&scene, &k, pose, &noise, i as u64);
+        let frame = rendered.to_frame(&config.depth).expect("frame");
+        reports.push(slam.push_frame(&frame, i as f64).expect("push"));
+        truth.push((i as f64, origin_inv * *pose));
+    }
+    (slam, reports, truth)
+}
+
+/// Runs a real dataset folder through the pipeline with its preset.
+pub fn run_dataset(dir: &PathBuf) -> (Pipeline, Sequence, Vec<FrameReport>) {
+    let sequence = Sequence::open(dir).expect("sequence opens");
+    let config = SlamConfig::from_preset(sequence.preset);
+    let mut slam = Pipeline::new(config.clone()).expect("valid config");
+    let reports = sequence
+        .frames
+        .iter()
+        .map(|entry| {
+            let frame = read_frame(dir, entry, &config.depth).expect("frame decodes");
+            slam.push_frame(&frame, entry.timestamp)
+                .expect("frame accepted")
+        })
+        .collect();
+    (slam, sequence, reports)
+}
+
+/// Number of reports judged lost.
+pub fn lost_count(reports: &[FrameReport]) -> usize {
+    reports
+        .iter()
+        .filter(|r| matches!(r.verdict, Verdict::Lost(_)))
+        .count()
+}
