@@ -7,6 +7,9 @@
 //! then translation (metres), the order of the point-to-plane rows
 //! `A_i = [(p' x n)^T, n^T]`.
 
+// Index loops mirror the matrix formulas (row, col, k) and read better than iterator chains here.
+#![allow(clippy::needless_range_loop)]
+
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 
 /// A 6-vector twist: rotation (rad) then translation (m).
@@ -52,7 +55,7 @@ pub fn exp(twist: &Twist) -> DAffine3 {
 /// SE(3) logarithm: the twist whose exponential is `pose`.
 #[must_use]
 pub fn log(pose: &DAffine3) -> Twist {
-    let rotation = DMat3::from(pose.matrix3);
+    let rotation = pose.matrix3;
     let q = DQuat::from_mat3(&rotation).normalize();
     let (axis, angle) = q.to_axis_angle();
     let angle = if angle > std::f64::consts::PI {
@@ -70,16 +73,16 @@ pub fn log(pose: &DAffine3) -> Twist {
         (1.0 - theta * theta.sin() / (2.0 * (1.0 - theta.cos()))) / theta2
     };
     let left_jacobian_inv = DMat3::IDENTITY - k * 0.5 + k * k * c;
-    let v = left_jacobian_inv * DVec3::from(pose.translation);
+    let v = left_jacobian_inv * pose.translation;
     [w.x, w.y, w.z, v.x, v.y, v.z]
 }
 
 /// Translation length (m) and rotation angle (rad) of a rigid motion.
 #[must_use]
 pub fn motion_magnitude(pose: &DAffine3) -> (f64, f64) {
-    let q = DQuat::from_mat3(&DMat3::from(pose.matrix3)).normalize();
+    let q = DQuat::from_mat3(&pose.matrix3).normalize();
     let angle = 2.0 * q.w.abs().min(1.0).acos();
-    (DVec3::from(pose.translation).length(), angle)
+    (pose.translation.length(), angle)
 }
 
 /// Symmetric 6x6 normal equations `A x = b`, accumulated in f64.
@@ -190,7 +193,7 @@ fn cholesky_solve(mut m: [[f64; 6]; 6], rhs: [f64; 6]) -> Option<Twist> {
         for k in 0..j {
             diag -= m[j][k] * m[j][k];
         }
-        if !(diag > 1e-18) || !diag.is_finite() {
+        if diag.is_nan() || diag <= 1e-18 || !diag.is_finite() {
             return None;
         }
         let diag = diag.sqrt();

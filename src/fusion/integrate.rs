@@ -186,9 +186,8 @@ fn merge(map: &mut SurfelMap, j: usize, m: &Measurement, frame: u32) {
     map.positions[j] = map.positions[j] * a + m.position * b;
     let n = map.normals[j] * a + m.normal * b;
     map.normals[j] = n.try_normalize().unwrap_or(map.normals[j]);
-    let old = map.colours[j];
-    for ch in 0..3 {
-        map.colours[j][ch] = (f32::from(old[ch]) * a + f32::from(m.colour[ch]) * b).round() as u8;
+    for (stored, &measured) in map.colours[j].iter_mut().zip(&m.colour).take(3) {
+        *stored = (f32::from(*stored) * a + f32::from(measured) * b).round() as u8;
     }
     map.radii[j] = map.radii[j].min(map.radii[j] * a + m.radius * b);
     map.confidences[j] = total;

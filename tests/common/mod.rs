@@ -4,7 +4,7 @@
 #![allow(dead_code)]
 
 use glam::DAffine3;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use surfel_slam::dataset::{read_frame, Sequence};
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
 use surfel_slam::{DepthSettings, FrameReport, Intrinsics, Pipeline, SlamConfig, Verdict};
@@ -63,7 +63,7 @@ pub fn run_synthetic(
 }
 
 /// Runs a real dataset folder through the pipeline with its preset.
-pub fn run_dataset(dir: &PathBuf) -> (Pipeline, Sequence, Vec<FrameReport>) {
+pub fn run_dataset(dir: &Path) -> (Pipeline, Sequence, Vec<FrameReport>) {
     let sequence = Sequence::open(dir).expect("sequence opens");
     let config = SlamConfig::from_preset(sequence.preset);
     let mut slam = Pipeline::new(config.clone()).expect("valid config");
