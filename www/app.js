@@ -236,6 +236,7 @@ const handlers = {
     countRunFrame(msg);
     if (renderer) {
       renderer.updateSurfels(msg.surfels);
+      if (msg.refresh) renderer.updateSurfels(msg.refresh);
       const intr = currentIntrinsics();
       renderer.setCameraPose(msg.result.pose, intr);
       anchorGroundTruth(msg.timestamp, msg.result.pose);

@@ -21,6 +21,8 @@ let playing = false;
 let pumping = false;
 let prefetch = null; // { key, promise }
 let framesOk = 0;
+let refreshCursor = 0; // start of the next rolling refresh window (surfel index)
+const REFRESH_SURFELS = 65536;
 
 const post = (msg, transfer = []) => self.postMessage(msg, transfer);
 const errorText = (e) => (e && e.message ? e.message : String(e));
@@ -242,6 +244,22 @@ async function processNext() {
     radii: slam.radii().slice(start, end),
     confidences: slam.confidences().slice(start, end),
   };
+  // Merges are not in the changed range (they refine surfels by less than the
+  // noise): refresh a rolling window so merged colours and positions reach
+  // the GPU within count / REFRESH_SURFELS frames.
+  const refreshStart = refreshCursor < count ? refreshCursor : 0;
+  const refreshEnd = Math.min(count, refreshStart + REFRESH_SURFELS);
+  refreshCursor = refreshEnd >= count ? 0 : refreshEnd;
+  const refresh = {
+    count,
+    start: refreshStart,
+    end: refreshEnd,
+    positions: slam.positions().slice(3 * refreshStart, 3 * refreshEnd),
+    normals: slam.normals().slice(3 * refreshStart, 3 * refreshEnd),
+    colours: slam.colours().slice(4 * refreshStart, 4 * refreshEnd),
+    radii: slam.radii().slice(refreshStart, refreshEnd),
+    confidences: slam.confidences().slice(refreshStart, refreshEnd),
+  };
   const tCopy = performance.now();
 
   let ate = null;
@@ -264,6 +282,7 @@ async function processNext() {
       depthPath: frame.depth,
       result: r,
       surfels,
+      refresh,
       ate,
       timing: {
         read: tRead - t0,
@@ -281,6 +300,11 @@ async function processNext() {
       surfels.colours.buffer,
       surfels.radii.buffer,
       surfels.confidences.buffer,
+      refresh.positions.buffer,
+      refresh.normals.buffer,
+      refresh.colours.buffer,
+      refresh.radii.buffer,
+      refresh.confidences.buffer,
       colourBuf,
       depthBuf,
     ],

@@ -191,6 +191,8 @@ fn merge(map: &mut SurfelMap, j: usize, m: &Measurement, frame: u32) {
     }
     map.radii[j] = map.radii[j].min(map.radii[j] * a + m.radius * b);
     map.confidences[j] = total;
+    // Not marked changed: a merge refines a surfel by less than the sensor
+    // noise; renderers refresh merged data in the background (see
+    // `SurfelMap::take_changed_range`).
     map.last_seen[j] = frame;
-    map.mark_changed(j);
 }

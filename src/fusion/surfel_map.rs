@@ -54,9 +54,13 @@ impl SurfelMap {
         }
     }
 
-    /// The index range whose surfels were added, merged or moved since the last
-    /// call, clamped to the current length, and resets it. A renderer that
-    /// re-uploads this range (and draws `len()` surfels) stays in sync.
+    /// The index range whose slots were filled by new surfels or by surfels
+    /// moved when others were removed, since the last call, clamped to the
+    /// current length; resets it. Merges are not included: they refine a
+    /// surfel's position, normal and colour by less than the sensor noise, so
+    /// a renderer that uploads this range every frame, draws `len()` surfels
+    /// and refreshes the rest in a rolling window shows the map correctly
+    /// while uploading a small fraction of it per frame.
     pub fn take_changed_range(&mut self) -> std::ops::Range<usize> {
         let hi = self.change_hi.min(self.len());
         let lo = self.change_lo.min(hi);

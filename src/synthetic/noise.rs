@@ -1,0 +1,192 @@
+//! Sensor noise: the [`NoiseModel`] parameters, the deterministic SplitMix64
+//! stream (uniform and gaussian draws) and depth-edge detection.
+
+use super::texture::sin_turns;
+
+/// Sensor noise applied by [`render`](fn@super::render).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseModel {
+    /// Standard deviation of depth noise at 1 m, metres; it grows with z^2 (Kinect-like).
+    pub depth_sigma_at_1m: f32,
+    /// Fraction of pixels dropped at random (depth 0), 0..1.
+    pub hole_fraction: f32,
+    /// Drop pixels at depth discontinuities, like a structured-light sensor.
+    pub edge_holes: bool,
+    /// Standard deviation of colour noise per channel, 0..255 units.
+    pub colour_sigma: f32,
+}
+
+impl NoiseModel {
+    /// No noise: raw depth is the exact depth rounded to 1/5000 m, colour exact.
+    #[must_use]
+    pub const fn none() -> Self {
+        Self {
+            depth_sigma_at_1m: 0.0,
+            hole_fraction: 0.0,
+            edge_holes: false,
+            colour_sigma: 0.0,
+        }
+    }
+
+    /// Kinect-like: depth sigma 1.2 mm x z^2 (m) then 16-bit quantisation, 2 %
+    /// random holes, holes at depth edges, colour sigma 2.
+    #[must_use]
+    pub const fn kinect() -> Self {
+        Self {
+            depth_sigma_at_1m: 0.0012,
+            hole_fraction: 0.02,
+            edge_holes: true,
+            colour_sigma: 2.0,
+        }
+    }
+}
+
+impl Default for NoiseModel {
+    fn default() -> Self {
+        Self::none()
+    }
+}
+
+/// Relative depth jump between 4-neighbours that counts as a discontinuity.
+const EDGE_RELATIVE_JUMP: f32 = 0.04;
+
+pub(super) fn is_depth_edge(depth: &[f32], w: usize, h: usize, u: usize, v: usize) -> bool {
+    let z = depth[v * w + u];
+    let limit = EDGE_RELATIVE_JUMP * z;
+    let jump = |zn: f32| zn <= 0.0 || (zn - z).abs() > limit;
+    (u > 0 && jump(depth[v * w + u - 1]))
+        || (u + 1 < w && jump(depth[v * w + u + 1]))
+        || (v > 0 && jump(depth[(v - 1) * w + u]))
+        || (v + 1 < h && jump(depth[(v + 1) * w + u]))
+}
+
+/// Non-finite or negative noise parameters mean "no noise".
+pub(super) fn sanitise(x: f32) -> f32 {
+    if x.is_finite() && x > 0.0 {
+        x
+    } else {
+        0.0
+    }
+}
+
+pub(super) fn row_seed(seed: u64, row: usize, stream: u64) -> u64 {
+    let mut s = SplitMix64::new(seed ^ stream.wrapping_mul(0xA076_1D64_78BD_642F));
+    s.next_u64() ^ (row as u64).wrapping_mul(0xE703_7ED1_A0B4_28DB)
+}
+
+/// SplitMix64 (Steele, Lea, Flood 2014): tiny, fast, good enough for noise.
+#[derive(Debug, Clone)]
+pub(super) struct SplitMix64 {
+    state: u64,
+    spare: Option<f32>,
+}
+
+impl SplitMix64 {
+    pub(super) fn new(seed: u64) -> Self {
+        Self {
+            state: seed,
+            spare: None,
+        }
+    }
+
+    pub(super) fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    pub(super) fn next_f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+    }
+
+    /// Standard normal (Box-Muller; the second value of each pair is kept for the next call).
+    pub(super) fn gaussian(&mut self) -> f32 {
+        if let Some(g) = self.spare.take() {
+            return g;
+        }
+        let bits = self.next_u64();
+        // u1 in (0, 1] so that ln(u1) is finite.
+        let u1 = ((bits >> 40) as f32 + 1.0) * (1.0 / (1u64 << 24) as f32);
+        let u2 = (bits & 0xFF_FFFF) as f32 * (1.0 / (1u64 << 24) as f32);
+        let r = (-2.0 * u1.ln()).sqrt();
+        let (s, c) = (sin_turns(u2), sin_turns(u2 + 0.25));
+        self.spare = Some(r * s);
+        r * c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthetic::test_support::small;
+    use crate::synthetic::{default_intrinsics, render, render_into, trajectory_pose, Scene};
+
+    #[test]
+    fn noise_none_is_deterministic_and_exact() {
+        let scene = Scene::room();
+        let k = small();
+        let pose = trajectory_pose(42);
+        let a = render(&scene, &k, &pose, &NoiseModel::none(), 1);
+        let b = render(&scene, &k, &pose, &NoiseModel::none(), 99);
+        assert_eq!(a, b);
+        for (&raw, &z) in a.depth_raw.iter().zip(&a.depth_m) {
+            assert_eq!(raw, (z * 5000.0).round() as u16);
+        }
+        // Reusing buffers gives the same frame.
+        let mut c = render(
+            &scene,
+            &default_intrinsics(),
+            &pose,
+            &NoiseModel::kinect(),
+            3,
+        );
+        render_into(&mut c, &scene, &k, &pose, &NoiseModel::none(), 5);
+        assert_eq!(a, c);
+    }
+
+    #[test]
+    fn kinect_noise_has_the_right_size() {
+        let scene = Scene::room();
+        let k = default_intrinsics();
+        let pose = trajectory_pose(100);
+        let exact = render(&scene, &k, &pose, &NoiseModel::none(), 1);
+        let noisy = render(&scene, &k, &pose, &NoiseModel::kinect(), 1);
+        assert_eq!(noisy, render(&scene, &k, &pose, &NoiseModel::kinect(), 1));
+        assert_ne!(noisy, render(&scene, &k, &pose, &NoiseModel::kinect(), 2));
+        assert_eq!(noisy.depth_m, exact.depth_m);
+
+        let n = k.pixel_count() as f64;
+        let holes = noisy.depth_raw.iter().filter(|&&r| r == 0).count() as f64 / n;
+        assert!((0.02..0.10).contains(&holes), "hole fraction {holes}");
+
+        // Normalised depth error (error / z^2) should have std ~ 1.2 mm.
+        let (mut sum, mut sum2, mut count) = (0.0f64, 0.0f64, 0.0f64);
+        for (&raw, &z) in noisy.depth_raw.iter().zip(&noisy.depth_m) {
+            if raw > 0 {
+                let e = f64::from(f32::from(raw) / 5000.0 - z) / f64::from(z * z);
+                sum += e;
+                sum2 += e * e;
+                count += 1.0;
+            }
+        }
+        let mean = sum / count;
+        let std = (sum2 / count - mean * mean).sqrt();
+        assert!(mean.abs() < 2e-4, "bias {mean}");
+        assert!((0.0009..0.0016).contains(&std), "sigma at 1 m {std}");
+
+        let diffs: Vec<f64> = noisy
+            .rgb
+            .iter()
+            .zip(&exact.rgb)
+            .map(|(&a, &b)| f64::from(a) - f64::from(b))
+            .collect();
+        let colour_std = (diffs.iter().map(|d| d * d).sum::<f64>() / diffs.len() as f64).sqrt();
+        assert!(
+            (1.5..2.5).contains(&colour_std),
+            "colour sigma {colour_std}"
+        );
+    }
+}
