@@ -273,7 +273,9 @@ impl Pipeline {
                 index,
                 &self.config.fusion,
             );
-            fusion.removed = remove_unstable(&mut self.map, &self.config.fusion, index);
+            if index % self.config.fusion.cleanup_interval_frames.max(1) == 0 {
+                fusion.removed = remove_unstable(&mut self.map, &self.config.fusion, index);
+            }
             t3 = now_ms();
             let fusion_cfg = self.config.fusion;
             let map = &self.map;

@@ -28,6 +28,10 @@ pub struct FusionConfig {
     pub stable_confidence: f32,
     /// Unstable surfels older than this many frames are removed.
     pub unstable_max_age: u32,
+    /// Removal runs every this many frames: removing compacts the arrays and
+    /// shifts every later surfel, which a renderer must re-upload, so it is
+    /// batched (measured: same ATE on ICL-NUIM kt0 and TUM fr3/teddy as 1).
+    pub cleanup_interval_frames: u32,
     /// During the first frames all surfels are predicted, stable or not.
     pub warmup_frames: u32,
     /// Index-map cells per pixel side (4 = Keller's 4x4).
@@ -44,6 +48,7 @@ impl Default for FusionConfig {
             confidence_sigma: 0.6,
             stable_confidence: 5.0,
             unstable_max_age: 20,
+            cleanup_interval_frames: 10,
             warmup_frames: 10,
             index_supersampling: 4,
             max_radius_m: 0.05,
