@@ -1,25 +1,13 @@
 //! Loaders on the real sequences in `../shared/data` (skipped with a message
 //! when that folder is absent).
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::shared_dataset;
+use std::path::Path;
 
 use surfel_slam::dataset::{read_frame, DatasetKind, Sequence};
 use surfel_slam::CameraPreset;
-
-fn data_dir(name: &str) -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name);
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "skipping: ../shared/data not found ({} is absent)",
-            dir.display()
-        );
-        None
-    }
-}
 
 fn check_first_frame(dir: &Path, sequence: &Sequence, min_valid_fraction: f64) {
     let settings = sequence.preset.depth_settings();
@@ -46,7 +34,7 @@ fn check_first_frame(dir: &Path, sequence: &Sequence, min_valid_fraction: f64) {
 
 #[test]
 fn tum_fr3_teddy() {
-    let Some(dir) = data_dir("tum_fr3_teddy") else {
+    let Some(dir) = shared_dataset("tum_fr3_teddy") else {
         return;
     };
     let sequence = Sequence::open(&dir).expect("opens");
@@ -80,7 +68,7 @@ fn tum_fr3_teddy() {
 
 #[test]
 fn icl_office_kt0() {
-    let Some(dir) = data_dir("icl_office_kt0") else {
+    let Some(dir) = shared_dataset("icl_office_kt0") else {
         return;
     };
     let sequence = Sequence::open(&dir).expect("opens");
