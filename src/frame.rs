@@ -151,7 +151,7 @@ impl DepthSettings {
 }
 
 /// A decoded RGB-D frame at full resolution.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct RgbdFrame {
     /// Width, pixels.
     pub width: usize,

@@ -23,4 +23,4 @@ pub mod wasm;
 pub use camera::{CameraPreset, Intrinsics};
 pub use frame::{DepthSettings, FrameError, RgbdFrame};
 pub use fusion::SurfelMap;
-pub use pipeline::{FrameReport, Pipeline, PipelineError, SlamConfig, Verdict};
+pub use pipeline::{FrameReport, Pipeline, PipelineError, SlamConfig, StageTimings, Verdict};

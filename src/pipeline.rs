@@ -10,7 +10,7 @@ use crate::frame::{DepthSettings, FrameError, RgbdFrame};
 use crate::fusion::{
     remove_unstable, FusionConfig, FusionStats, Integrator, Prediction, SurfelMap,
 };
-use crate::preprocess::{FramePyramid, PreprocessConfig};
+use crate::preprocess::{half_resolution_into, FramePyramid, PreprocessConfig};
 use crate::track::{track, LostReason, TrackerConfig};
 use glam::DAffine3;
 use thiserror::Error;
@@ -20,6 +20,9 @@ use thiserror::Error;
 pub struct SlamConfig {
     /// Camera intrinsics at the input resolution.
     pub intrinsics: Intrinsics,
+    /// Track and fuse at half the input resolution (2x2 averaged depth and
+    /// colour): about 3x faster for a small accuracy cost (see README).
+    pub half_resolution: bool,
     /// Raw depth to metres.
     pub depth: DepthSettings,
     /// Filtering and pyramid.
@@ -36,10 +39,21 @@ impl SlamConfig {
     pub fn from_preset(preset: CameraPreset) -> Self {
         Self {
             intrinsics: preset.intrinsics(),
+            half_resolution: false,
             depth: preset.depth_settings(),
             preprocess: PreprocessConfig::default(),
             tracker: TrackerConfig::default(),
             fusion: FusionConfig::default(),
+        }
+    }
+
+    /// Intrinsics of the images tracked and fused (halved with `half_resolution`).
+    #[must_use]
+    pub fn working_intrinsics(&self) -> Intrinsics {
+        if self.half_resolution {
+            self.intrinsics.half()
+        } else {
+            self.intrinsics
         }
     }
 
@@ -53,11 +67,12 @@ impl SlamConfig {
         }
         self.depth.validate()?;
         let levels = self.preprocess.levels;
-        let min_side = self.intrinsics.width.min(self.intrinsics.height);
+        let working = self.working_intrinsics();
+        let min_side = working.width.min(working.height);
         if levels == 0 || levels > 5 || (min_side >> (levels - 1)) < 8 {
             return Err(PipelineError::InvalidConfig(format!(
                 "{levels} pyramid levels do not fit a {}x{} image",
-                self.intrinsics.width, self.intrinsics.height
+                working.width, working.height
             )));
         }
         if self.tracker.iterations.len() < levels {
@@ -153,6 +168,8 @@ pub struct FrameReport {
 pub struct Pipeline {
     config: SlamConfig,
     pyramid: FramePyramid,
+    /// The input at half resolution, when `half_resolution` is set.
+    half_frame: RgbdFrame,
     map: SurfelMap,
     prediction: Prediction,
     integrator: Integrator,
@@ -166,7 +183,8 @@ impl Pipeline {
     pub fn new(config: SlamConfig) -> Result<Self, PipelineError> {
         config.validate()?;
         Ok(Self {
-            pyramid: FramePyramid::new(&config.intrinsics, &config.preprocess),
+            pyramid: FramePyramid::new(&config.working_intrinsics(), &config.preprocess),
+            half_frame: RgbdFrame::default(),
             config,
             map: SurfelMap::default(),
             prediction: Prediction::default(),
@@ -238,9 +256,17 @@ impl Pipeline {
         frame: &RgbdFrame,
         timestamp: f64,
     ) -> Result<FrameReport, PipelineError> {
-        let k = self.config.intrinsics;
-        frame.expect_size(k.width, k.height)?;
+        let input = self.config.intrinsics;
+        frame.expect_size(input.width, input.height)?;
+        let k = self.config.working_intrinsics();
         let t0 = now_ms();
+        let frame = if self.config.half_resolution {
+            let gate = 3.0 * self.config.preprocess.sigma_depth_m;
+            half_resolution_into(frame, gate, &mut self.half_frame);
+            &self.half_frame
+        } else {
+            frame
+        };
         self.pyramid.build(frame, &self.config.preprocess);
         let t1 = now_ms();
 
@@ -272,6 +298,7 @@ impl Pipeline {
                 &pose,
                 index,
                 &self.config.fusion,
+                self.config.depth.max_m,
             );
             if index % self.config.fusion.cleanup_interval_frames.max(1) == 0 {
                 fusion.removed = remove_unstable(&mut self.map, &self.config.fusion, index);
@@ -279,8 +306,9 @@ impl Pipeline {
             t3 = now_ms();
             let fusion_cfg = self.config.fusion;
             let map = &self.map;
+            let far_m = self.config.depth.max_m;
             self.prediction
-                .render(map, &pose, &k, fusion_cfg.depth_gate_m, |i| {
+                .render(map, &pose, &k, (fusion_cfg.depth_gate_m, far_m), |i| {
                     fusion_cfg.predicts(map, i, index)
                 });
             self.last_good = Some(pose);

@@ -85,6 +85,56 @@ pub fn motion_magnitude(pose: &DAffine3) -> (f64, f64) {
     (pose.translation.length(), angle)
 }
 
+/// Normal equations of a short run of residuals (one image row) in f32, to
+/// be flushed into an f64 [`NormalEquations`]: the f32 sums stay short
+/// enough to keep their precision, and the hot loop runs at f32 speed.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RowAccumulator {
+    /// Upper triangle of `sum w J^T J` (21 values, row by row), then
+    /// `sum w J^T r` (6), then `sum w r^2`.
+    sums: [f32; 28],
+    count: usize,
+}
+
+impl RowAccumulator {
+    /// Adds one residual `r` with Jacobian row `j` and weight `w`.
+    #[inline]
+    pub fn add(&mut self, j: &[f32; 6], r: f32, w: f32) {
+        let mut k = 0;
+        for row in 0..6 {
+            let wj = w * j[row];
+            for col in row..6 {
+                self.sums[k] += wj * j[col];
+                k += 1;
+            }
+        }
+        for row in 0..6 {
+            self.sums[21 + row] += w * j[row] * r;
+        }
+        self.sums[27] += w * r * r;
+        self.count += 1;
+    }
+
+    /// Adds the sums into `system` and resets them.
+    #[inline]
+    pub fn flush_into(&mut self, system: &mut NormalEquations) {
+        if self.count == 0 {
+            return;
+        }
+        let mut k = 0;
+        for row in 0..6 {
+            for col in row..6 {
+                system.a[row][col] += f64::from(self.sums[k]);
+                k += 1;
+            }
+            system.b[row] += f64::from(self.sums[21 + row]);
+        }
+        system.cost += f64::from(self.sums[27]);
+        system.count += self.count;
+        *self = Self::default();
+    }
+}
+
 /// Symmetric 6x6 normal equations `A x = b`, accumulated in f64.
 ///
 /// Only the upper triangle is accumulated; `solve` mirrors it.

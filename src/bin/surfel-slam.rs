@@ -1,5 +1,7 @@
 //! `surfel-slam`: run dense RGB-D SLAM over a dataset folder, or evaluate a trajectory.
 
+mod bench;
+
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -9,7 +11,7 @@ use surfel_slam::eval::{ate, rpe};
 use surfel_slam::{CameraPreset, Pipeline, SlamConfig, Verdict};
 
 /// Timestamps of matched poses may differ by this much (seconds; frame numbers match exactly).
-const MAX_DT: f64 = 0.02;
+pub(crate) const MAX_DT: f64 = 0.02;
 
 #[derive(Parser)]
 #[command(
@@ -26,6 +28,9 @@ struct Cli {
 enum Command {
     /// Track and fuse a TUM, ICL-NUIM or 7-Scenes folder.
     Run(RunArgs),
+    /// Time every stage over a sequence (files preloaded; decode included):
+    /// medians per stage and per frame, peak memory.
+    Bench(bench::BenchArgs),
     /// ATE and RPE of a TUM-format trajectory against ground truth.
     Eval {
         /// Estimated trajectory (TUM format).
@@ -56,13 +61,30 @@ struct RunArgs {
     preset: Option<String>,
     #[command(flatten)]
     overrides: CameraOverrides,
+    #[command(flatten)]
+    tracking: TrackingArgs,
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
 }
 
+/// Processing options shared by `run` and `bench`.
 #[derive(Args)]
-struct CameraOverrides {
+pub(crate) struct TrackingArgs {
+    /// Track and fuse at half resolution (e.g. 320x240 from 640x480).
+    #[arg(long)]
+    half: bool,
+}
+
+impl TrackingArgs {
+    pub(crate) fn apply(&self, config: &mut SlamConfig) -> Result<()> {
+        config.half_resolution = self.half;
+        Ok(())
+    }
+}
+
+#[derive(Args)]
+pub(crate) struct CameraOverrides {
     /// Focal length x, pixels.
     #[arg(long)]
     fx: Option<f32>,
@@ -89,6 +111,7 @@ struct CameraOverrides {
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Run(args) => run(&args),
+        Command::Bench(args) => bench::bench(&args),
         Command::Eval {
             estimate,
             ground_truth,
@@ -96,8 +119,12 @@ fn main() -> Result<()> {
     }
 }
 
-fn config_for(sequence: &Sequence, args: &RunArgs) -> Result<SlamConfig> {
-    let preset = match &args.preset {
+pub(crate) fn config_for(
+    sequence: &Sequence,
+    preset: Option<&str>,
+    o: &CameraOverrides,
+) -> Result<SlamConfig> {
+    let preset = match preset {
         Some(name) => CameraPreset::from_name(name).with_context(|| {
             let names: Vec<_> = CameraPreset::ALL.iter().map(|p| p.name()).collect();
             format!("unknown preset {name:?}; known: {}", names.join(", "))
@@ -105,7 +132,6 @@ fn config_for(sequence: &Sequence, args: &RunArgs) -> Result<SlamConfig> {
         None => sequence.preset,
     };
     let mut config = SlamConfig::from_preset(preset);
-    let o = &args.overrides;
     let k = &mut config.intrinsics;
     k.fx = o.fx.unwrap_or(k.fx);
     k.fy = o.fy.unwrap_or(k.fy);
@@ -134,7 +160,8 @@ fn run(args: &RunArgs) -> Result<()> {
             args.first
         );
     }
-    let mut config = config_for(&sequence, args)?;
+    let mut config = config_for(&sequence, args.preset.as_deref(), &args.overrides)?;
+    args.tracking.apply(&mut config)?;
     // The sequence's own image size wins over the preset's.
     let first = read_frame(&args.dataset, frames[0], &config.depth)?;
     config.intrinsics.width = first.width;

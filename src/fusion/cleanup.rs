@@ -4,13 +4,24 @@ use super::{FusionConfig, SurfelMap};
 
 /// Removes surfels with confidence below the stable threshold that were created
 /// more than `unstable_max_age` frames before `frame`. Returns how many went.
+///
+/// Confidence never decreases and surfels are stored in creation order, so
+/// the surfels old enough at the previous call were settled then (removed,
+/// or stable for good): only the younger tail is visited, and a call costs
+/// what a few frames added, not the size of the map.
 pub fn remove_unstable(map: &mut SurfelMap, config: &FusionConfig, frame: u32) -> usize {
     let before = map.len();
-    let confidences = map.confidences.clone();
-    let first_seen = map.first_seen.clone();
-    map.retain_indices(|i| {
-        confidences[i] >= config.stable_confidence
-            || frame.saturating_sub(first_seen[i]) <= config.unstable_max_age
-    });
+    let settled_before = map
+        .last_cleanup
+        .map_or(0, |f| f.saturating_sub(config.unstable_max_age));
+    let start = map.first_seen.partition_point(|&f| f < settled_before);
+    let stable = config.stable_confidence;
+    let max_age = config.unstable_max_age;
+    let (confidences, first_seen) = (&map.confidences, &map.first_seen);
+    let keep: Vec<bool> = (start..before)
+        .map(|i| confidences[i] >= stable || frame.saturating_sub(first_seen[i]) <= max_age)
+        .collect();
+    map.retain_from(start, |i| keep[i - start]);
+    map.last_cleanup = Some(frame);
     before - map.len()
 }

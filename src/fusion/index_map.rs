@@ -1,10 +1,8 @@
-//! Index map: the surfels of the map projected into a camera, nearest first.
-//!
-//! At `supersampling = 4` this is Keller et al.'s 4x4 super-sampled index map
-//! used for data association (up to 16 candidate surfels per input pixel); at
-//! `supersampling = 1` it is the z-buffer behind the model prediction. Each
-//! cell holds `(depth bits << 32) | surfel index`, so an atomic `fetch_min`
-//! keeps the nearest surfel while all surfels are splatted in parallel.
+//! Index map: the surfels of the map projected into a camera, one pixel per
+//! surfel centre, nearest first: the z-buffer behind the model prediction.
+//! Each pixel holds `(depth bits << 32) | surfel index`, so an atomic
+//! `fetch_min` keeps the nearest surfel while surfels are projected in
+//! parallel. Only the chunks of the map inside the view frustum are visited.
 //!
 //! With a `confidence_band_m`, a second pass keeps, per cell, the most
 //! confident surfel within that depth of the nearest one. Picking the nearest
@@ -17,6 +15,7 @@ use crate::camera::Intrinsics;
 use crate::fusion::SurfelMap;
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
+use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Empty cell marker.
@@ -60,61 +59,58 @@ impl RigidF32 {
     }
 }
 
-/// Nearest-surfel buffer of a camera view, `supersampling` cells per pixel side.
+/// Depth (metres) and pixel index of a camera-frame point, or `None` when it
+/// is behind the camera or outside the image.
+#[inline]
+#[must_use]
+pub fn pixel_of(k: &Intrinsics, p: Vec3) -> Option<(f32, usize)> {
+    if p.z <= 0.0 {
+        return None;
+    }
+    let px = k.project(p);
+    let cu = (px.x + 0.5).floor();
+    let cv = (px.y + 0.5).floor();
+    if !(cu >= 0.0 && cv >= 0.0 && cu < k.width as f32 && cv < k.height as f32) {
+        return None;
+    }
+    Some((p.z, cv as usize * k.width + cu as usize))
+}
+
+/// Calls `f(i)` in parallel for every surfel index in `ranges` (chunks of the map).
+pub fn for_each_in(ranges: &[Range<usize>], f: impl Fn(usize) + Sync + Send) {
+    ranges.par_iter().for_each(|r| r.clone().for_each(&f));
+}
+
+/// Nearest-surfel buffer of a camera view, one cell per pixel.
 #[derive(Debug, Default)]
 pub struct IndexMap {
-    /// Cells per pixel along each axis.
-    pub supersampling: usize,
-    /// Width in cells.
+    /// Width, pixels.
     pub width: usize,
-    /// Height in cells.
+    /// Height, pixels.
     pub height: usize,
     cells: Vec<AtomicU64>,
     confident: Vec<AtomicU64>,
 }
 
-/// Depth and cell index of surfel `i`'s centre in the view, or `None` if not visible.
-#[inline]
-fn cell_of(
-    map: &SurfelMap,
-    i: usize,
-    camera_from_world: &RigidF32,
-    k: &Intrinsics,
-    s: f32,
-    (w, h): (usize, usize),
-) -> Option<(f32, usize)> {
-    let p = camera_from_world.point(map.positions[i]);
-    if p.z <= 0.0 {
-        return None;
-    }
-    let px = k.project(p);
-    let cu = ((px.x + 0.5) * s).floor();
-    let cv = ((px.y + 0.5) * s).floor();
-    if !(cu >= 0.0 && cv >= 0.0 && cu < w as f32 && cv < h as f32) {
-        return None;
-    }
-    Some((p.z, cv as usize * w + cu as usize))
-}
-
 impl IndexMap {
     /// Allocates (or reuses) the buffer for an image of `k`'s size.
-    pub fn resize(&mut self, k: &Intrinsics, supersampling: usize) {
-        self.supersampling = supersampling.max(1);
-        self.width = k.width * self.supersampling;
-        self.height = k.height * self.supersampling;
+    pub fn resize(&mut self, k: &Intrinsics) {
+        self.width = k.width;
+        self.height = k.height;
         let n = self.width * self.height;
         if self.cells.len() != n {
             self.cells = (0..n).map(|_| AtomicU64::new(EMPTY)).collect();
         }
     }
 
-    /// Projects the centres of the surfels selected by `include` into the view
-    /// `camera_from_world`, one cell each. With `confidence_band_m`, each cell
-    /// ends up with the most confident surfel within that depth of the
-    /// nearest one instead of the nearest.
+    /// Projects the centres of the surfels in `ranges` selected by `include`
+    /// into the view `camera_from_world`, one pixel each. With
+    /// `confidence_band_m`, each pixel ends up with the most confident surfel
+    /// within that depth of the nearest one instead of the nearest.
     pub fn render(
         &mut self,
         map: &SurfelMap,
+        ranges: &[Range<usize>],
         camera_from_world: &RigidF32,
         k: &Intrinsics,
         confidence_band_m: Option<f32>,
@@ -123,14 +119,13 @@ impl IndexMap {
         self.cells
             .par_iter()
             .for_each(|c| c.store(EMPTY, Ordering::Relaxed));
-        let s = self.supersampling as f32;
-        let size = (self.width, self.height);
         let cells = &self.cells;
-        (0..map.len()).into_par_iter().for_each(|i| {
+        let include = &include;
+        for_each_in(ranges, |i| {
             if !include(i) {
                 return;
             }
-            if let Some((z, cell)) = cell_of(map, i, camera_from_world, k, s, size) {
+            if let Some((z, cell)) = pixel_of(k, camera_from_world.point(map.positions[i])) {
                 cells[cell].fetch_min((u64::from(z.to_bits()) << 32) | i as u64, Ordering::Relaxed);
             }
         });
@@ -144,11 +139,11 @@ impl IndexMap {
             .par_iter()
             .for_each(|c| c.store(0, Ordering::Relaxed));
         let confident = &self.confident;
-        (0..map.len()).into_par_iter().for_each(|i| {
+        for_each_in(ranges, |i| {
             if !include(i) {
                 return;
             }
-            let Some((z, cell)) = cell_of(map, i, camera_from_world, k, s, size) else {
+            let Some((z, cell)) = pixel_of(k, camera_from_world.point(map.positions[i])) else {
                 return;
             };
             let nearest = f32::from_bits((cells[cell].load(Ordering::Relaxed) >> 32) as u32);

@@ -1,15 +1,22 @@
 //! Merge and add: fuse one frame's measurements into the surfel map.
 //!
-//! Each input pixel owns the 4x4 block of index-map cells under it, so the
-//! blocks are disjoint and every surfel is a candidate of at most one pixel:
-//! decisions are taken in parallel, then applied.
+//! Association (Keller et al. 2013): a pixel's candidates are the surfels
+//! whose centres project into it (Keller's 4x4 super-sampled index map keeps
+//! the nearest of them per sub-cell; here all of them are considered) that
+//! pass the depth and normal gates; the most confident one is merged with the
+//! measurement, and a pixel without one adds a new surfel. Every surfel
+//! projects into one pixel only, so candidates are found in parallel over the
+//! visible chunks of the map with an atomic maximum per pixel, then applied.
 
-use super::index_map::{IndexMap, RigidF32};
+use super::frustum::visible_chunks;
+use super::index_map::{for_each_in, pixel_of, RigidF32};
 use super::{FusionConfig, SurfelMap};
 use crate::camera::Intrinsics;
 use crate::preprocess::FramePyramid;
 use glam::{DAffine3, Vec3};
 use rayon::prelude::*;
+use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// What one fusion step did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -22,18 +29,13 @@ pub struct FusionStats {
     pub removed: usize,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Decision {
-    Skip,
-    Add,
-    Merge(u32),
-}
-
 /// Reusable buffers for fusing frames of one resolution.
 #[derive(Debug, Default)]
 pub struct Integrator {
-    index: IndexMap,
-    decisions: Vec<Decision>,
+    /// Per pixel: `(confidence bits << 32) | (surfel index + 1)` of the best
+    /// candidate, 0 when none.
+    best: Vec<AtomicU64>,
+    visible: Vec<Range<usize>>,
 }
 
 /// One measurement in the world frame, with its weight.
@@ -46,7 +48,9 @@ struct Measurement {
 }
 
 impl Integrator {
-    /// Fuses the frame in `pyramid` seen from `world_from_camera` into `map` at index `frame`.
+    /// Fuses the frame in `pyramid` seen from `world_from_camera` into `map`
+    /// at index `frame`; `far_m` is the farthest depth the sensor measures.
+    #[allow(clippy::too_many_arguments)]
     pub fn integrate(
         &mut self,
         map: &mut SurfelMap,
@@ -55,59 +59,61 @@ impl Integrator {
         world_from_camera: &DAffine3,
         frame: u32,
         config: &FusionConfig,
+        far_m: f32,
     ) -> FusionStats {
         let Some(level0) = pyramid.levels.first() else {
             return FusionStats::default();
         };
         let camera_from_world = RigidF32::from_affine(&world_from_camera.inverse());
         let world_from_camera_f = RigidF32::from_affine(world_from_camera);
-        self.index.resize(k, config.index_supersampling);
-        self.index
-            .render(map, &camera_from_world, k, None, |_| true);
-
-        let w = k.width;
-        let s = self.index.supersampling;
+        let n = k.pixel_count();
+        if self.best.len() != n {
+            self.best = (0..n).map(|_| AtomicU64::new(0)).collect();
+        } else {
+            self.best
+                .par_iter()
+                .for_each(|b| b.store(0, Ordering::Relaxed));
+        }
+        visible_chunks(
+            map,
+            k,
+            &camera_from_world,
+            far_m + config.depth_gate_m,
+            &mut self.visible,
+        );
         let cos_gate = config.normal_gate_deg.to_radians().cos();
-        let index = &self.index;
+        let best = &self.best;
         let map_ref = &*map;
-        self.decisions.resize(k.pixel_count(), Decision::Skip);
-        self.decisions
-            .par_chunks_mut(w)
-            .enumerate()
-            .for_each(|(v, row)| {
-                for (u, decision) in row.iter_mut().enumerate() {
-                    let i = v * w + u;
-                    let p = level0.vertices[i];
-                    let n = level0.normals[i];
-                    *decision = if p.z <= 0.0 || n == Vec3::ZERO {
-                        Decision::Skip
-                    } else {
-                        best_candidate(
-                            index,
-                            map_ref,
-                            &camera_from_world,
-                            (u * s, v * s),
-                            p,
-                            world_from_camera_f.vector(n),
-                            cos_gate,
-                            config.depth_gate_m,
-                        )
-                        .map_or(Decision::Add, Decision::Merge)
-                    };
-                }
-            });
+        for_each_in(&self.visible, |j| {
+            let q = camera_from_world.point(map_ref.positions[j]);
+            let Some((z, pixel)) = pixel_of(k, q) else {
+                return;
+            };
+            let p = level0.vertices[pixel];
+            let n = level0.normals[pixel];
+            if p.z <= 0.0 || n == Vec3::ZERO || (z - p.z).abs() > config.depth_gate_m {
+                return;
+            }
+            if camera_from_world.vector(map_ref.normals[j]).dot(n) < cos_gate {
+                return;
+            }
+            // Confidences are positive, so their bit patterns order like the values.
+            let key = (u64::from(map_ref.confidences[j].max(0.0).to_bits()) << 32) | (j as u64 + 1);
+            best[pixel].fetch_max(key, Ordering::Relaxed);
+        });
 
         let mut stats = FusionStats::default();
+        let w = k.width;
         let centre = glam::Vec2::new(k.cx, k.cy);
         let centre_norm = centre.length().max(1.0);
         let focal = k.focal_abs();
-        for (i, decision) in self.decisions.iter().enumerate() {
-            if *decision == Decision::Skip {
+        for (i, best) in self.best.iter().enumerate() {
+            let p = level0.vertices[i];
+            let n_cam = level0.normals[i];
+            if p.z <= 0.0 || n_cam == Vec3::ZERO {
                 continue;
             }
             let (u, v) = ((i % w) as f32, (i / w) as f32);
-            let p = level0.vertices[i];
-            let n_cam = level0.normals[i];
             let gamma = (glam::Vec2::new(u, v) - centre).length() / centre_norm;
             let weight = (-(gamma * gamma) / (2.0 * config.confidence_sigma.powi(2))).exp();
             let radius = (std::f32::consts::SQRT_2 * p.z / focal / n_cam.z.abs().max(0.25))
@@ -120,62 +126,19 @@ impl Integrator {
                 radius,
                 weight,
             };
-            match *decision {
-                Decision::Merge(j) => {
-                    merge(map, j as usize, &m, frame);
-                    stats.merged += 1;
-                }
-                Decision::Add => {
+            match best.load(Ordering::Relaxed) & 0xffff_ffff {
+                0 => {
                     map.push(m.position, m.normal, m.colour, m.radius, m.weight, frame);
                     stats.added += 1;
                 }
-                Decision::Skip => {}
+                j => {
+                    merge(map, j as usize - 1, &m, frame);
+                    stats.merged += 1;
+                }
             }
         }
         stats
     }
-}
-
-/// Among the surfels in the pixel's block, the one passing the depth and
-/// normal gates with the highest confidence (ties: closest to the ray).
-#[allow(clippy::too_many_arguments)]
-fn best_candidate(
-    index: &IndexMap,
-    map: &SurfelMap,
-    camera_from_world: &RigidF32,
-    (x0, y0): (usize, usize),
-    point_in_camera: Vec3,
-    normal_in_world: Vec3,
-    cos_gate: f32,
-    depth_gate: f32,
-) -> Option<u32> {
-    let s = index.supersampling;
-    let ray = point_in_camera.normalize();
-    let mut best: Option<(usize, f32, f32)> = None;
-    for y in y0..y0 + s {
-        for x in x0..x0 + s {
-            let Some(j) = index.surfel_at(x, y) else {
-                continue;
-            };
-            let q = camera_from_world.point(map.positions[j]);
-            if (q.z - point_in_camera.z).abs() > depth_gate {
-                continue;
-            }
-            if map.normals[j].dot(normal_in_world) < cos_gate {
-                continue;
-            }
-            let conf = map.confidences[j];
-            let off_ray = q.cross(ray).length();
-            let better = match best {
-                None => true,
-                Some((_, c, d)) => conf > c || (conf == c && off_ray < d),
-            };
-            if better {
-                best = Some((j, conf, off_ray));
-            }
-        }
-    }
-    best.and_then(|(j, _, _)| u32::try_from(j).ok())
 }
 
 /// Confidence-weighted average of surfel `j` and a measurement.
@@ -183,7 +146,7 @@ fn merge(map: &mut SurfelMap, j: usize, m: &Measurement, frame: u32) {
     let c = map.confidences[j];
     let total = c + m.weight;
     let (a, b) = (c / total, m.weight / total);
-    map.positions[j] = map.positions[j] * a + m.position * b;
+    map.set_position(j, map.positions[j] * a + m.position * b);
     let n = map.normals[j] * a + m.normal * b;
     map.normals[j] = n.try_normalize().unwrap_or(map.normals[j]);
     for (stored, &measured) in map.colours[j].iter_mut().zip(&m.colour).take(3) {

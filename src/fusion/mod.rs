@@ -1,10 +1,13 @@
 //! Point-based fusion (Keller et al. 2013): associate each input pixel with
-//! the model through a super-sampled index map, merge or add, remove
-//! unstable surfels, and predict the model for the next frame's tracker.
+//! the surfels whose centres project into it, merge or add, remove unstable
+//! surfels, and predict the model for the next frame's tracker. Only the
+//! map chunks inside the view frustum are visited (`chunk_bounds`, `frustum`).
 //!
 //! All surfel attributes are in the world frame, metres.
 
+pub mod chunk_bounds;
 mod cleanup;
+pub mod frustum;
 pub mod index_map;
 mod integrate;
 pub mod predict;
@@ -34,8 +37,6 @@ pub struct FusionConfig {
     pub cleanup_interval_frames: u32,
     /// During the first frames all surfels are predicted, stable or not.
     pub warmup_frames: u32,
-    /// Index-map cells per pixel side (4 = Keller's 4x4).
-    pub index_supersampling: usize,
     /// Cap on a surfel's radius, metres.
     pub max_radius_m: f32,
 }
@@ -50,7 +51,6 @@ impl Default for FusionConfig {
             unstable_max_age: 20,
             cleanup_interval_frames: 10,
             warmup_frames: 10,
-            index_supersampling: 4,
             max_radius_m: 0.05,
         }
     }

@@ -4,6 +4,7 @@
 //! to the GPU as is (positions and normals are tightly packed `[f32; 3]`,
 //! colours `[u8; 4]` RGBA with A = 255) and per-surfel loops vectorise.
 
+use super::chunk_bounds::ChunkBounds;
 use glam::Vec3;
 
 /// All surfels of the model, structure of arrays; index `i` is one surfel.
@@ -27,6 +28,10 @@ pub struct SurfelMap {
     change_lo: usize,
     /// One past the highest index changed since the last `take_changed_range`.
     change_hi: usize,
+    /// Boxes around runs of consecutive surfels, for view culling.
+    bounds: ChunkBounds,
+    /// Frame of the last removal of unstable surfels (see `remove_unstable`).
+    pub(super) last_cleanup: Option<u32>,
 }
 
 impl SurfelMap {
@@ -73,6 +78,8 @@ impl SurfelMap {
     pub fn clear(&mut self) {
         self.change_lo = 0;
         self.change_hi = 0;
+        self.bounds.clear();
+        self.last_cleanup = None;
         self.positions.clear();
         self.normals.clear();
         self.colours.clear();
@@ -100,15 +107,37 @@ impl SurfelMap {
         self.confidences.push(confidence);
         self.first_seen.push(frame);
         self.last_seen.push(frame);
-        self.mark_changed(self.positions.len() - 1);
+        let i = self.positions.len() - 1;
+        self.bounds.grow(i, position);
+        self.mark_changed(i);
+    }
+
+    /// Moves surfel `i` to `position` (world frame, metres), keeping the
+    /// spatial index valid.
+    #[inline]
+    pub fn set_position(&mut self, i: usize, position: Vec3) {
+        self.positions[i] = position;
+        self.bounds.grow(i, position);
+    }
+
+    /// The spatial index: boxes around runs of consecutive surfels.
+    #[must_use]
+    pub fn bounds(&self) -> &ChunkBounds {
+        &self.bounds
     }
 
     /// Keeps only the surfels for which `keep(i)` is true, preserving order.
-    pub fn retain_indices(&mut self, mut keep: impl FnMut(usize) -> bool) {
+    pub fn retain_indices(&mut self, keep: impl FnMut(usize) -> bool) {
+        self.retain_from(0, keep);
+    }
+
+    /// Keeps every surfel before `start` and, from `start` on, those for
+    /// which `keep(i)` is true, preserving order. Costs O(len - start).
+    pub fn retain_from(&mut self, start: usize, mut keep: impl FnMut(usize) -> bool) {
         let len = self.len();
-        let mut write = 0;
+        let mut write = start.min(len);
         let mut first_removed = None;
-        for read in 0..len {
+        for read in write..len {
             if !keep(read) {
                 first_removed.get_or_insert(read);
                 continue;
@@ -129,6 +158,7 @@ impl SurfelMap {
             self.mark_changed(first);
             self.mark_changed(len.saturating_sub(1));
         }
+        let first_removed = first_removed.unwrap_or(write);
         self.positions.truncate(write);
         self.normals.truncate(write);
         self.colours.truncate(write);
@@ -136,6 +166,9 @@ impl SurfelMap {
         self.confidences.truncate(write);
         self.first_seen.truncate(write);
         self.last_seen.truncate(write);
+        if first_removed < len {
+            self.bounds.rebuild_from(&self.positions, first_removed);
+        }
     }
 
     /// True when every stored value is finite (no NaN or infinity anywhere).

@@ -16,7 +16,7 @@
 use crate::fusion::index_map::RigidF32;
 use crate::fusion::Prediction;
 use crate::preprocess::PyramidLevel;
-use crate::se3::NormalEquations;
+use crate::se3::{NormalEquations, RowAccumulator};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -57,11 +57,13 @@ pub fn icp_step(
     };
     let cos_gate = gates.normal_gate_deg.to_radians().cos();
     let gate2 = gates.distance_gate_m * gates.distance_gate_m;
-    let rows: Vec<usize> = (0..pk.height).step_by(stride.max(1)).collect();
-    rows.par_iter()
-        .fold(IcpStep::default, |mut acc, &v| {
-            let base = v * pk.width;
-            for u in (0..pk.width).step_by(stride.max(1)) {
+    let stride = stride.max(1);
+    (0..pk.height.div_ceil(stride))
+        .into_par_iter()
+        .fold(IcpStep::default, |mut acc, row| {
+            let base = row * stride * pk.width;
+            let mut sums = RowAccumulator::default();
+            for u in (0..pk.width).step_by(stride) {
                 let n_model = prediction.normals[base + u];
                 if n_model == Vec3::ZERO {
                     continue;
@@ -93,8 +95,9 @@ pub fn icp_step(
                 } else {
                     gates.huber_m / r.abs()
                 };
-                acc.system.add(&[c.x, c.y, c.z, n.x, n.y, n.z], r, w);
+                sums.add(&[c.x, c.y, c.z, n.x, n.y, n.z], r, w);
             }
+            sums.flush_into(&mut acc.system);
             acc
         })
         .reduce(IcpStep::default, |a, b| IcpStep {

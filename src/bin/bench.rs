@@ -1,0 +1,168 @@
+//! `surfel-slam bench`: per-stage timings, per-frame median and peak memory
+//! over a sequence, optionally looped forwards and backwards to any length.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use std::path::PathBuf;
+use surfel_slam::dataset::Sequence;
+use surfel_slam::eval::ate;
+use surfel_slam::{Pipeline, StageTimings, Verdict};
+
+use crate::{config_for, CameraOverrides, TrackingArgs, MAX_DT};
+
+#[derive(Args)]
+pub struct BenchArgs {
+    /// Dataset folder (layout detected automatically).
+    dataset: PathBuf,
+    /// Frames to process; past the sequence's end it is played backwards,
+    /// then forwards again, so the camera motion stays continuous.
+    #[arg(long)]
+    frames: Option<usize>,
+    /// Camera preset; default from the layout.
+    #[arg(long)]
+    preset: Option<String>,
+    #[command(flatten)]
+    overrides: CameraOverrides,
+    #[command(flatten)]
+    tracking: TrackingArgs,
+}
+
+/// Index into a sequence of `len` frames for step `i` of a ping-pong loop.
+fn ping_pong(i: usize, len: usize) -> usize {
+    if len < 2 {
+        return 0;
+    }
+    let period = 2 * (len - 1);
+    let k = i % period;
+    if k < len {
+        k
+    } else {
+        period - k
+    }
+}
+
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Peak resident memory of this process, MiB (Linux; `None` elsewhere).
+fn peak_rss_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
+}
+
+fn stage_medians(timings: &[StageTimings]) -> Vec<(&'static str, f64)> {
+    let stage = |f: fn(&StageTimings) -> f64| {
+        let mut v: Vec<f64> = timings.iter().map(f).collect();
+        median(&mut v)
+    };
+    vec![
+        ("decode", stage(|t| t.decode_ms)),
+        ("preprocess", stage(|t| t.preprocess_ms)),
+        ("track", stage(|t| t.track_ms)),
+        ("fuse", stage(|t| t.fuse_ms)),
+        ("predict", stage(|t| t.predict_ms)),
+        ("total", stage(|t| t.total_ms)),
+    ]
+}
+
+pub fn bench(args: &BenchArgs) -> Result<()> {
+    let sequence = Sequence::open(&args.dataset)
+        .with_context(|| format!("opening {}", args.dataset.display()))?;
+    if sequence.frames.is_empty() {
+        bail!("{} holds no frames", args.dataset.display());
+    }
+    // Files are read up front so that disk speed is not part of the timings.
+    let mut bytes = Vec::with_capacity(sequence.frames.len());
+    for entry in &sequence.frames {
+        let read = |name: &str| {
+            let path = args.dataset.join(name);
+            std::fs::read(&path).with_context(|| format!("reading {}", path.display()))
+        };
+        bytes.push((read(&entry.colour)?, read(&entry.depth)?));
+    }
+    let total = args.frames.unwrap_or(sequence.frames.len());
+    let mut config = config_for(&sequence, args.preset.as_deref(), &args.overrides)?;
+    args.tracking.apply(&mut config)?;
+    let first = surfel_slam::RgbdFrame::from_png_bytes(&bytes[0].0, &bytes[0].1, &config.depth)
+        .context("decoding the first frame")?;
+    config.intrinsics.width = first.width;
+    config.intrinsics.height = first.height;
+    let mut slam = Pipeline::new(config)?;
+
+    let mut timings = Vec::with_capacity(total);
+    let (mut lost, mut failed) = (0usize, 0usize);
+    for i in 0..total {
+        let k = ping_pong(i, sequence.frames.len());
+        let (colour, depth) = &bytes[k];
+        match slam.push_png(colour, depth, sequence.frames[k].timestamp) {
+            Ok(report) => {
+                if matches!(report.verdict, Verdict::Lost(_)) {
+                    lost += 1;
+                }
+                timings.push(report.timings);
+            }
+            Err(e) => {
+                failed += 1;
+                eprintln!("frame {i} ({}) skipped: {e}", sequence.frames[k].colour);
+            }
+        }
+    }
+
+    let size = slam.config().intrinsics;
+    println!(
+        "{}: {} frames at {}x{}, {lost} lost, {failed} unreadable, {} surfels, {} rayon threads",
+        args.dataset.display(),
+        total,
+        size.width,
+        size.height,
+        slam.map().len(),
+        rayon::current_num_threads(),
+    );
+    if !sequence.ground_truth.is_empty() {
+        match ate(slam.trajectory(), &sequence.ground_truth, MAX_DT) {
+            Ok(a) => println!("ate_cm: {:.3} ({} poses)", a.rmse_m * 100.0, a.pairs),
+            Err(e) => println!("ate_cm: n/a ({e})"),
+        }
+    }
+    for (name, ms) in stage_medians(&timings) {
+        println!("median_ms_{name}: {ms:.2}");
+    }
+    // Flatness over a long run: the same window length early and late.
+    if timings.len() >= 400 {
+        let n = timings.len();
+        let window = |range: std::ops::Range<usize>| {
+            let mut v: Vec<f64> = timings[range].iter().map(|t| t.total_ms).collect();
+            median(&mut v)
+        };
+        let early = window(100..200);
+        let late = window(n - 100..n);
+        println!(
+            "median_ms_frames_100_200: {early:.2}\nmedian_ms_frames_{}_{n}: {late:.2}\nlate_over_early: {:.3}",
+            n - 100,
+            late / early.max(1e-9)
+        );
+    }
+    match peak_rss_mib() {
+        Some(mib) => println!("peak_rss_mib: {mib:.1}"),
+        None => println!("peak_rss_mib: n/a"),
+    }
+    let mut totals: Vec<f64> = timings.iter().map(|t| t.total_ms).collect();
+    println!("median_ms_per_frame: {:.2}", median(&mut totals));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ping_pong;
+
+    #[test]
+    fn ping_pong_turns_at_both_ends() {
+        let seq: Vec<usize> = (0..9).map(|i| ping_pong(i, 4)).collect();
+        assert_eq!(seq, [0, 1, 2, 3, 2, 1, 0, 1, 2]);
+        assert_eq!(ping_pong(5, 1), 0);
+    }
+}
