@@ -211,8 +211,10 @@ impl RgbdFrame {
         settings: &DepthSettings,
     ) -> Result<Self, FrameError> {
         settings.validate()?;
-        let (dw, dh, raw) = decode_depth_raw(depth)?;
-        let (cw, ch, rgb) = decode_colour(colour)?;
+        // The two images are independent: decode them on two threads.
+        let (depth, colour) = rayon::join(|| decode_depth_raw(depth), || decode_colour(colour));
+        let (dw, dh, raw) = depth?;
+        let (cw, ch, rgb) = colour?;
         if (cw, ch) != (dw, dh) {
             return Err(FrameError::SizeMismatch {
                 colour_width: cw,

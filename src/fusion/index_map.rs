@@ -67,13 +67,7 @@ pub fn pixel_of(k: &Intrinsics, p: Vec3) -> Option<(f32, usize)> {
     if p.z <= 0.0 {
         return None;
     }
-    let px = k.project(p);
-    let cu = (px.x + 0.5).floor();
-    let cv = (px.y + 0.5).floor();
-    if !(cu >= 0.0 && cv >= 0.0 && cu < k.width as f32 && cv < k.height as f32) {
-        return None;
-    }
-    Some((p.z, cv as usize * k.width + cu as usize))
+    k.pixel_index(k.project(p)).map(|i| (p.z, i))
 }
 
 /// Calls `f(i)` in parallel for every surfel index in `ranges` (chunks of the map).

@@ -6,10 +6,13 @@
 //! pass the depth and normal gates; the most confident one is merged with the
 //! measurement, and a pixel without one adds a new surfel. Every surfel
 //! projects into one pixel only, so candidates are found in parallel over the
-//! visible chunks of the map with an atomic maximum per pixel, then applied.
+//! visible chunks of the map with an atomic maximum per pixel, and merges are
+//! applied in parallel over the chunks; adds are appended in pixel order.
 
+use super::chunk_bounds::CHUNK;
 use super::frustum::visible_chunks;
 use super::index_map::{for_each_in, pixel_of, RigidF32};
+use super::surfel_map::ChunkMut;
 use super::{FusionConfig, SurfelMap};
 use crate::camera::Intrinsics;
 use crate::preprocess::FramePyramid;
@@ -36,6 +39,31 @@ pub struct Integrator {
     /// candidate, 0 when none.
     best: Vec<AtomicU64>,
     visible: Vec<Range<usize>>,
+    chunks: Vec<ChunkUpdate>,
+    /// Radial confidence weight per column and per row (it is separable).
+    weight_u: Vec<f32>,
+    weight_v: Vec<f32>,
+}
+
+/// Per map chunk: whether it is in view, and what its merges did.
+#[derive(Debug, Clone, Copy)]
+struct ChunkUpdate {
+    visible: bool,
+    merged: usize,
+    /// Box around the merged surfels' new positions, world frame, metres.
+    min: Vec3,
+    max: Vec3,
+}
+
+impl Default for ChunkUpdate {
+    fn default() -> Self {
+        Self {
+            visible: false,
+            merged: 0,
+            min: Vec3::splat(f32::INFINITY),
+            max: Vec3::splat(f32::NEG_INFINITY),
+        }
+    }
 }
 
 /// One measurement in the world frame, with its weight.
@@ -102,60 +130,95 @@ impl Integrator {
             best[pixel].fetch_max(key, Ordering::Relaxed);
         });
 
-        let mut stats = FusionStats::default();
+        // gamma^2 = ((u - cx)^2 + (v - cy)^2) / |c|^2, so the weight
+        // exp(-gamma^2 / (2 sigma^2)) is a product of a column and a row factor.
+        let scale = 1.0 / (2.0 * config.confidence_sigma.powi(2) * (k.cx * k.cx + k.cy * k.cy).max(1.0));
+        let radial = |d: f32| (-(d * d) * scale).exp();
+        self.weight_u.clear();
+        self.weight_u.extend((0..k.width).map(|u| radial(u as f32 - k.cx)));
+        self.weight_v.clear();
+        self.weight_v.extend((0..k.height).map(|v| radial(v as f32 - k.cy)));
+        let (weight_u, weight_v) = (&self.weight_u, &self.weight_v);
         let w = k.width;
-        let centre = glam::Vec2::new(k.cx, k.cy);
-        let centre_norm = centre.length().max(1.0);
         let focal = k.focal_abs();
-        for (i, best) in self.best.iter().enumerate() {
+        let measure = |i: usize| {
             let p = level0.vertices[i];
             let n_cam = level0.normals[i];
-            if p.z <= 0.0 || n_cam == Vec3::ZERO {
-                continue;
-            }
-            let (u, v) = ((i % w) as f32, (i / w) as f32);
-            let gamma = (glam::Vec2::new(u, v) - centre).length() / centre_norm;
-            let weight = (-(gamma * gamma) / (2.0 * config.confidence_sigma.powi(2))).exp();
             let radius = (std::f32::consts::SQRT_2 * p.z / focal / n_cam.z.abs().max(0.25))
                 .min(config.max_radius_m);
             let c = &pyramid.rgb[3 * i..3 * i + 3];
-            let m = Measurement {
+            Measurement {
                 position: world_from_camera_f.point(p),
                 normal: world_from_camera_f.vector(n_cam),
                 colour: [c[0], c[1], c[2], 255],
                 radius,
-                weight,
-            };
-            match best.load(Ordering::Relaxed) & 0xffff_ffff {
-                0 => {
-                    map.push(m.position, m.normal, m.colour, m.radius, m.weight, frame);
-                    stats.added += 1;
-                }
-                j => {
-                    merge(map, j as usize - 1, &m, frame);
-                    stats.merged += 1;
-                }
+                weight: weight_u[i % w] * weight_v[i / w],
             }
+        };
+
+        self.chunks.clear();
+        self.chunks.resize(map.bounds().len(), ChunkUpdate::default());
+        for r in &self.visible {
+            if let Some(c) = self.chunks.get_mut(r.start / CHUNK) {
+                c.visible = true;
+            }
+        }
+        map.for_each_chunk_mut(&mut self.chunks, |mut chunk, update| {
+            if !update.visible {
+                return;
+            }
+            for local in 0..chunk.positions.len() {
+                let q = camera_from_world.point(chunk.positions[local]);
+                let Some((_, pixel)) = pixel_of(k, q) else {
+                    continue;
+                };
+                if best[pixel].load(Ordering::Relaxed) & 0xffff_ffff != (chunk.first + local) as u64 + 1 {
+                    continue;
+                }
+                let p = merge(&mut chunk, local, &measure(pixel), frame);
+                update.min = update.min.min(p);
+                update.max = update.max.max(p);
+                update.merged += 1;
+            }
+        });
+        let mut stats = FusionStats::default();
+        for (c, update) in self.chunks.iter().enumerate() {
+            if update.merged > 0 {
+                map.grow_bounds(c, update.min, update.max);
+                stats.merged += update.merged;
+            }
+        }
+        for (i, best) in self.best.iter().enumerate() {
+            let p = level0.vertices[i];
+            if p.z <= 0.0 || level0.normals[i] == Vec3::ZERO || best.load(Ordering::Relaxed) != 0 {
+                continue;
+            }
+            let m = measure(i);
+            map.push(m.position, m.normal, m.colour, m.radius, m.weight, frame);
+            stats.added += 1;
         }
         stats
     }
 }
 
-/// Confidence-weighted average of surfel `j` and a measurement.
-fn merge(map: &mut SurfelMap, j: usize, m: &Measurement, frame: u32) {
-    let c = map.confidences[j];
+/// Confidence-weighted average of surfel `local` of `chunk` and a
+/// measurement; returns the new position.
+fn merge(chunk: &mut ChunkMut<'_>, j: usize, m: &Measurement, frame: u32) -> Vec3 {
+    let c = chunk.confidences[j];
     let total = c + m.weight;
     let (a, b) = (c / total, m.weight / total);
-    map.set_position(j, map.positions[j] * a + m.position * b);
-    let n = map.normals[j] * a + m.normal * b;
-    map.normals[j] = n.try_normalize().unwrap_or(map.normals[j]);
-    for (stored, &measured) in map.colours[j].iter_mut().zip(&m.colour).take(3) {
+    let position = chunk.positions[j] * a + m.position * b;
+    chunk.positions[j] = position;
+    let n = chunk.normals[j] * a + m.normal * b;
+    chunk.normals[j] = n.try_normalize().unwrap_or(chunk.normals[j]);
+    for (stored, &measured) in chunk.colours[j].iter_mut().zip(&m.colour).take(3) {
         *stored = (f32::from(*stored) * a + f32::from(measured) * b).round() as u8;
     }
-    map.radii[j] = map.radii[j].min(map.radii[j] * a + m.radius * b);
-    map.confidences[j] = total;
+    chunk.radii[j] = chunk.radii[j].min(chunk.radii[j] * a + m.radius * b);
+    chunk.confidences[j] = total;
     // Not marked changed: a merge refines a surfel by less than the sensor
     // noise; renderers refresh merged data in the background (see
     // `SurfelMap::take_changed_range`).
-    map.last_seen[j] = frame;
+    chunk.last_seen[j] = frame;
+    position
 }

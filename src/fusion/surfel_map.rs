@@ -4,8 +4,28 @@
 //! to the GPU as is (positions and normals are tightly packed `[f32; 3]`,
 //! colours `[u8; 4]` RGBA with A = 255) and per-surfel loops vectorise.
 
-use super::chunk_bounds::ChunkBounds;
+use super::chunk_bounds::{ChunkBounds, CHUNK};
 use glam::Vec3;
+use rayon::prelude::*;
+
+/// Mutable view of one chunk of surfels (`CHUNK` consecutive indices), for
+/// updating disjoint parts of the map in parallel.
+pub struct ChunkMut<'a> {
+    /// Index of the chunk's first surfel.
+    pub first: usize,
+    /// Centres, world frame, metres.
+    pub positions: &'a mut [Vec3],
+    /// Unit normals, world frame.
+    pub normals: &'a mut [Vec3],
+    /// RGBA8 colours.
+    pub colours: &'a mut [[u8; 4]],
+    /// Radii, metres.
+    pub radii: &'a mut [f32],
+    /// Confidences.
+    pub confidences: &'a mut [f32],
+    /// Frame of the last merge.
+    pub last_seen: &'a mut [u32],
+}
 
 /// All surfels of the model, structure of arrays; index `i` is one surfel.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -89,6 +109,17 @@ impl SurfelMap {
         self.last_seen.clear();
     }
 
+    /// Reserves room for `additional` more surfels in every array.
+    pub fn reserve(&mut self, additional: usize) {
+        self.positions.reserve(additional);
+        self.normals.reserve(additional);
+        self.colours.reserve(additional);
+        self.radii.reserve(additional);
+        self.confidences.reserve(additional);
+        self.first_seen.reserve(additional);
+        self.last_seen.reserve(additional);
+    }
+
     /// Appends one surfel.
     #[allow(clippy::too_many_arguments)]
     pub fn push(
@@ -112,12 +143,44 @@ impl SurfelMap {
         self.mark_changed(i);
     }
 
-    /// Moves surfel `i` to `position` (world frame, metres), keeping the
-    /// spatial index valid.
-    #[inline]
-    pub fn set_position(&mut self, i: usize, position: Vec3) {
-        self.positions[i] = position;
-        self.bounds.grow(i, position);
+    /// Calls `f` in parallel on every chunk (see [`ChunkMut`]) with the
+    /// matching item of `per_chunk` (chunks past its length are skipped).
+    /// The caller must report moved surfels with [`SurfelMap::grow_bounds`].
+    pub fn for_each_chunk_mut<T: Send>(
+        &mut self,
+        per_chunk: &mut [T],
+        f: impl Fn(ChunkMut<'_>, &mut T) + Sync + Send,
+    ) {
+        self.positions
+            .par_chunks_mut(CHUNK)
+            .zip(self.normals.par_chunks_mut(CHUNK))
+            .zip(self.colours.par_chunks_mut(CHUNK))
+            .zip(self.radii.par_chunks_mut(CHUNK))
+            .zip(self.confidences.par_chunks_mut(CHUNK))
+            .zip(self.last_seen.par_chunks_mut(CHUNK))
+            .zip(per_chunk.par_iter_mut())
+            .enumerate()
+            .for_each(|(c, ((((((positions, normals), colours), radii), confidences), last_seen), item))| {
+                let chunk = ChunkMut {
+                    first: c * CHUNK,
+                    positions,
+                    normals,
+                    colours,
+                    radii,
+                    confidences,
+                    last_seen,
+                };
+                f(chunk, item);
+            });
+    }
+
+    /// Extends the spatial index of chunk `chunk` by the box `[min, max]`
+    /// (world frame, metres) after its surfels moved.
+    pub fn grow_bounds(&mut self, chunk: usize, min: Vec3, max: Vec3) {
+        if min.cmple(max).all() {
+            self.bounds.grow(chunk * CHUNK, min);
+            self.bounds.grow(chunk * CHUNK, max);
+        }
     }
 
     /// The spatial index: boxes around runs of consecutive surfels.

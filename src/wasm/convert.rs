@@ -26,6 +26,8 @@ export interface SlamConfig {
   /** Raw depth value meaning "no measurement" besides 0 (7-Scenes: 65535). */
   depthInvalid?: number;
   bilateral?: boolean;
+  /** Track and fuse at half the input resolution (about 3x faster, see README). */
+  halfResolution?: boolean;
   pyramidLevels?: number;
   /** Gauss-Newton iterations per pyramid level, finest first. */
   iterations?: number[];
@@ -136,6 +138,7 @@ const CONFIG_KEYS: [&str; 20] = [
     "depthMax",
     "depthInvalid",
     "bilateral",
+    "halfResolution",
     "pyramidLevels",
     "iterations",
     "icpDistance",
@@ -314,6 +317,9 @@ pub fn slam_config_from_js(config: &JsValue) -> Result<SlamConfig, String> {
     }
     if let Some(v) = f.integer("depthInvalid", 65535.0)? {
         cfg.depth.invalid_raw = u16::try_from(v).ok();
+    }
+    if let Some(v) = f.boolean("halfResolution")? {
+        cfg.half_resolution = v;
     }
     if let Some(v) = f.boolean("bilateral")? {
         cfg.preprocess.bilateral = v;
