@@ -141,7 +141,15 @@ fn stages(c: &mut Criterion) {
                 m
             },
             |mut m| {
-                integrator.integrate(&mut m, &pyramid, &k, &f.pose, MAP_FRAMES as u32, &fusion, far);
+                integrator.integrate(
+                    &mut m,
+                    &pyramid,
+                    &k,
+                    &f.pose,
+                    MAP_FRAMES as u32,
+                    &fusion,
+                    far,
+                );
                 m
             },
             BatchSize::LargeInput,

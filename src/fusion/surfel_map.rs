@@ -160,18 +160,23 @@ impl SurfelMap {
             .zip(self.last_seen.par_chunks_mut(CHUNK))
             .zip(per_chunk.par_iter_mut())
             .enumerate()
-            .for_each(|(c, ((((((positions, normals), colours), radii), confidences), last_seen), item))| {
-                let chunk = ChunkMut {
-                    first: c * CHUNK,
-                    positions,
-                    normals,
-                    colours,
-                    radii,
-                    confidences,
-                    last_seen,
-                };
-                f(chunk, item);
-            });
+            .for_each(
+                |(
+                    c,
+                    ((((((positions, normals), colours), radii), confidences), last_seen), item),
+                )| {
+                    let chunk = ChunkMut {
+                        first: c * CHUNK,
+                        positions,
+                        normals,
+                        colours,
+                        radii,
+                        confidences,
+                        last_seen,
+                    };
+                    f(chunk, item);
+                },
+            );
     }
 
     /// Extends the spatial index of chunk `chunk` by the box `[min, max]`
