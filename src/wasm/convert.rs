@@ -125,7 +125,7 @@ pub fn strings_from_js(value: &JsValue, what: &str) -> Result<Vec<String>, Strin
 }
 
 /// Config keys understood by [`slam_config_from_js`], for error messages.
-const CONFIG_KEYS: [&str; 20] = [
+const CONFIG_KEYS: &[&str] = &[
     "preset",
     "fx",
     "fy",
