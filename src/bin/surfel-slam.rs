@@ -1,10 +1,16 @@
 //! `surfel-slam`: run dense RGB-D SLAM over a dataset folder, or evaluate a trajectory.
+//!
+//! Exit codes: 0 success; 1 the run could not start or finish (unreadable
+//! folder, unknown layout, bad camera settings, ...; the message names the
+//! file or setting); 2 bad command line; 3 the run finished but some frames
+//! were skipped as unreadable (each was named on stderr).
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
-use surfel_slam::dataset::{ply::write_ply, read_frame, trajectory, Sequence};
+use std::process::ExitCode;
+use surfel_slam::dataset::{ply::write_ply, read_frame, trajectory, FrameEntry, Sequence};
 use surfel_slam::eval::{ate, rpe};
 use surfel_slam::{CameraPreset, Pipeline, SlamConfig, Verdict};
 
@@ -56,6 +62,10 @@ struct RunArgs {
     preset: Option<String>,
     #[command(flatten)]
     overrides: CameraOverrides,
+    /// Surfel budget: when the map holds this many, stale unstable surfels
+    /// are evicted and further new surfels skipped (merges continue).
+    #[arg(long)]
+    max_surfels: Option<usize>,
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
@@ -86,13 +96,24 @@ struct CameraOverrides {
     depth_max: Option<f32>,
 }
 
-fn main() -> Result<()> {
-    match Cli::parse().command {
+/// Exit code of a run that finished with some frames skipped as unreadable.
+const EXIT_FRAMES_SKIPPED: u8 = 3;
+
+fn main() -> ExitCode {
+    let result = match Cli::parse().command {
         Command::Run(args) => run(&args),
         Command::Eval {
             estimate,
             ground_truth,
-        } => evaluate(&estimate, &ground_truth),
+        } => evaluate(&estimate, &ground_truth).map(|()| 0),
+    };
+    match result {
+        Ok(0) => ExitCode::SUCCESS,
+        Ok(code) => ExitCode::from(code),
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
     }
 }
 
@@ -115,10 +136,38 @@ fn config_for(sequence: &Sequence, args: &RunArgs) -> Result<SlamConfig> {
     d.scale = o.depth_scale.unwrap_or(d.scale);
     d.min_m = o.depth_min.unwrap_or(d.min_m);
     d.max_m = o.depth_max.unwrap_or(d.max_m);
+    if let Some(n) = args.max_surfels {
+        config.fusion.max_surfels = n;
+    }
+    // Refuse bad camera settings before reading any image.
+    config.validate()?;
     Ok(config)
 }
 
-fn run(args: &RunArgs) -> Result<()> {
+/// The first frame that decodes, for the sequence's image size; the frames
+/// before it are named on stderr.
+fn first_readable(
+    dir: &Path,
+    frames: &[&FrameEntry],
+    config: &SlamConfig,
+) -> Result<(usize, usize)> {
+    let mut last_error = None;
+    for entry in frames {
+        match read_frame(dir, entry, &config.depth) {
+            Ok(f) => return Ok((f.width, f.height)),
+            Err(e) => {
+                eprintln!("frame {} unreadable: {e}", entry.index);
+                last_error = Some(e);
+            }
+        }
+    }
+    match last_error {
+        Some(e) => Err(e).context("no frame of the sequence could be read"),
+        None => bail!("no frames selected"),
+    }
+}
+
+fn run(args: &RunArgs) -> Result<u8> {
     let sequence = Sequence::open(&args.dataset)
         .with_context(|| format!("opening {}", args.dataset.display()))?;
     let frames: Vec<_> = sequence
@@ -136,9 +185,9 @@ fn run(args: &RunArgs) -> Result<()> {
     }
     let mut config = config_for(&sequence, args)?;
     // The sequence's own image size wins over the preset's.
-    let first = read_frame(&args.dataset, frames[0], &config.depth)?;
-    config.intrinsics.width = first.width;
-    config.intrinsics.height = first.height;
+    let (width, height) = first_readable(&args.dataset, &frames, &config)?;
+    config.intrinsics.width = width;
+    config.intrinsics.height = height;
     let mut slam = Pipeline::new(config)?;
 
     let bar = if args.quiet {
@@ -150,32 +199,39 @@ fn run(args: &RunArgs) -> Result<()> {
         ProgressStyle::with_template("{bar:40} {pos}/{len} {msg}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let (mut lost, mut failed, mut ms) = (0usize, 0usize, Vec::new());
+    let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
     for entry in &frames {
         let result = read_frame(&args.dataset, entry, &slam.config().depth)
             .map_err(anyhow::Error::from)
             .and_then(|f| {
                 let t0 = std::time::Instant::now();
-                let r = slam.push_frame(&f, entry.timestamp)?;
+                let r = slam
+                    .push_frame(&f, entry.timestamp)
+                    .with_context(|| format!("{} + {}", entry.colour, entry.depth))?;
                 Ok((r, t0.elapsed().as_secs_f64() * 1000.0))
             });
         match result {
             Ok((report, elapsed)) => {
                 ms.push(elapsed);
-                if let Verdict::Lost(reason) = report.verdict {
-                    lost += 1;
-                    bar.println(format!(
-                        "frame {} ({}) lost: {}",
+                match report.verdict {
+                    Verdict::Lost(reason) => bar.println(format!(
+                        "frame {} ({}) lost: {} (map kept, frame not fused)",
                         entry.index,
                         entry.timestamp,
                         reason.name()
-                    ));
+                    )),
+                    Verdict::Recovered => bar.println(format!(
+                        "frame {} ({}) recovered: re-acquired against the map after {streak} lost frame(s)",
+                        entry.index, entry.timestamp,
+                    )),
+                    _ => {}
                 }
+                streak = report.counts.lost_streak;
                 bar.set_message(format!("{} surfels", report.surfels));
             }
             Err(e) => {
                 failed += 1;
-                bar.println(format!("frame {} skipped: {e:#}", entry.index));
+                bar.suspend(|| eprintln!("frame {} skipped: {e:#}", entry.index));
             }
         }
         bar.inc(1);
@@ -193,7 +249,7 @@ fn run(args: &RunArgs) -> Result<()> {
     ms.sort_by(f64::total_cmp);
     let mean = ms.iter().sum::<f64>() / ms.len().max(1) as f64;
     let median = ms.get(ms.len() / 2).copied().unwrap_or(0.0);
-    let tracked = slam.trajectory().len() - lost;
+    let counts = slam.counts();
     let accuracy = if sequence.ground_truth.is_empty() {
         "ATE n/a (no ground truth)".to_string()
     } else {
@@ -203,12 +259,15 @@ fn run(args: &RunArgs) -> Result<()> {
         }
     };
     println!(
-        "{}: {} frames, {tracked} tracked, {lost} lost, {failed} unreadable, {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
+        "{}: {} frames, {} tracked, {} lost, {} recovered, {failed} unreadable, {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
         args.dataset.display(),
         frames.len(),
+        counts.tracked,
+        counts.lost,
+        counts.recovered,
         slam.map().len(),
     );
-    Ok(())
+    Ok(if failed > 0 { EXIT_FRAMES_SKIPPED } else { 0 })
 }
 
 fn evaluate(estimate: &Path, ground_truth: &Path) -> Result<()> {

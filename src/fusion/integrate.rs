@@ -20,6 +20,8 @@ pub struct FusionStats {
     pub added: usize,
     /// Unstable surfels removed.
     pub removed: usize,
+    /// New surfels not added because the map was at `max_surfels`.
+    pub skipped: usize,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -125,6 +127,7 @@ impl Integrator {
                     merge(map, j as usize, &m, frame);
                     stats.merged += 1;
                 }
+                Decision::Add if map.len() >= config.max_surfels => stats.skipped += 1,
                 Decision::Add => {
                     map.push(m.position, m.normal, m.colour, m.radius, m.weight, frame);
                     stats.added += 1;

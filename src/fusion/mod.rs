@@ -38,6 +38,10 @@ pub struct FusionConfig {
     pub index_supersampling: usize,
     /// Cap on a surfel's radius, metres.
     pub max_radius_m: f32,
+    /// Surfel budget. When the map holds this many, the pipeline first
+    /// evicts stale unstable surfels, then new surfels are skipped (counted
+    /// in `FusionStats::skipped`) while merges go on. 44 bytes per surfel.
+    pub max_surfels: usize,
 }
 
 impl Default for FusionConfig {
@@ -52,6 +56,7 @@ impl Default for FusionConfig {
             warmup_frames: 10,
             index_supersampling: 4,
             max_radius_m: 0.05,
+            max_surfels: 4_000_000,
         }
     }
 }
