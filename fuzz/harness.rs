@@ -37,10 +37,13 @@ pub fn decode_frame(data: &[u8]) {
         assert!(n > 0);
         assert_eq!(frame.rgb.len(), 3 * n);
         assert_eq!(frame.depth_m.len(), n);
-        assert!(frame
-            .depth_m
-            .iter()
-            .all(|d| d.is_finite() && (*d == 0.0 || (settings.min_m..=settings.max_m).contains(d))));
+        assert!(
+            frame
+                .depth_m
+                .iter()
+                .all(|d| d.is_finite()
+                    && (*d == 0.0 || (settings.min_m..=settings.max_m).contains(d)))
+        );
     }
     // Each half on its own, and the whole input as either image.
     for bytes in [colour, depth, rest] {
@@ -138,7 +141,9 @@ pub fn push_frame(data: &[u8]) {
             })
             .collect();
         let colour_len = if mode & 0x80 == 0 { 3 * n } else { 4 * n };
-        let colour: Vec<u8> = (0..colour_len).map(|i| tile[(i * 3) % tile.len()]).collect();
+        let colour: Vec<u8> = (0..colour_len)
+            .map(|i| tile[(i * 3) % tile.len()])
+            .collect();
         let before = slam.map().len();
         match RgbdFrame::from_raw(w, h, &colour, &depth, &config.depth)
             .map_err(surfel_slam::PipelineError::from)

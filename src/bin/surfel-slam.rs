@@ -111,10 +111,27 @@ fn main() -> ExitCode {
         Ok(0) => ExitCode::SUCCESS,
         Ok(code) => ExitCode::from(code),
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", describe(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The error and its causes joined by ": ", skipping a cause whose text the
+/// message already holds (library errors name their file and repeat their
+/// source's text).
+fn describe(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if !out.contains(&text) {
+            if !out.is_empty() {
+                out.push_str(": ");
+            }
+            out.push_str(&text);
+        }
+    }
+    out
 }
 
 fn config_for(sequence: &Sequence, args: &RunArgs) -> Result<SlamConfig> {
@@ -231,7 +248,7 @@ fn run(args: &RunArgs) -> Result<u8> {
             }
             Err(e) => {
                 failed += 1;
-                bar.suspend(|| eprintln!("frame {} skipped: {e:#}", entry.index));
+                bar.suspend(|| eprintln!("frame {} skipped: {}", entry.index, describe(&e)));
             }
         }
         bar.inc(1);
