@@ -7,8 +7,8 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { existsSync, readFileSync } from 'node:fs';
 import path from 'node:path';
-import zlib from 'node:zlib';
 import { loadPackage, PKG, ROOT } from './long_run.mjs';
+import { encodePng } from './png.mjs';
 
 const CLIP = path.join(ROOT, 'www/sample/tum_fr3_teddy_clip');
 
@@ -16,47 +16,6 @@ function rows(file) {
   return readFileSync(path.join(CLIP, file), 'utf8')
     .split('\n')
     .filter((l) => l.trim() && !l.startsWith('#'));
-}
-
-const crcTable = Array.from({ length: 256 }, (_, n) => {
-  let c = n;
-  for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
-  return c >>> 0;
-});
-function crc32(buf) {
-  let c = 0xffffffff;
-  for (const b of buf) c = crcTable[(c ^ b) & 0xff] ^ (c >>> 8);
-  return (c ^ 0xffffffff) >>> 0;
-}
-
-/**
- * A PNG of `width` x `height`, `channels` (1 or 3) of `bitDepth` (8 or 16),
- * filled with `value`; `claim` = [w, h] forges the header's size instead.
- */
-function encodePng(width, height, channels, bitDepth, value, claim = null) {
-  const bytesPerPixel = (channels * bitDepth) / 8;
-  const row = Buffer.alloc(1 + width * bytesPerPixel);
-  for (let i = 1; i < row.length; i += bitDepth / 8) {
-    if (bitDepth === 16) row.writeUInt16BE(value, i);
-    else row[i] = value;
-  }
-  const raw = Buffer.concat(Array.from({ length: height }, () => row));
-  const chunk = (type, data) => {
-    const out = Buffer.alloc(12 + data.length);
-    out.writeUInt32BE(data.length, 0);
-    out.write(type, 4, 'latin1');
-    data.copy(out, 8);
-    out.writeUInt32BE(crc32(out.subarray(4, 8 + data.length)), 8 + data.length);
-    return out;
-  };
-  const ihdr = Buffer.alloc(13);
-  ihdr.writeUInt32BE(claim ? claim[0] : width, 0);
-  ihdr.writeUInt32BE(claim ? claim[1] : height, 4);
-  ihdr[8] = bitDepth;
-  ihdr[9] = channels === 3 ? 2 : 0;
-  return new Uint8Array(
-    Buffer.concat([Buffer.from([137, 80, 78, 71, 13, 10, 26, 10]), chunk('IHDR', ihdr), chunk('IDAT', zlib.deflateSync(raw)), chunk('IEND', Buffer.alloc(0))]),
-  );
 }
 
 const skip = existsSync(path.join(PKG, 'surfel_slam.js')) ? false : `${PKG} is not built: run scripts/build.sh`;
@@ -119,8 +78,17 @@ test('bad frames and settings throw a clear Error; the Slam keeps working', { sk
       assert.equal(slam.surfelCount, before, `${name}: the map changed`);
       good();
     }
-    const r = good();
-    assert.equal(r.counts.lost, 0);
+    assert.equal(good().counts.lost, 0);
+    // A frame without depth: lost, not fused; the next one is re-acquired.
+    const before = slam.surfelCount;
+    const [c, d] = frame(i);
+    const blank = slam.pushFrame(c, encodePng(640, 480, 1, 16, 0), i++);
+    assert.equal(blank.verdict, 'lost');
+    assert.equal(blank.lostReason, 'too-few-inliers');
+    assert.equal(slam.surfelCount, before, 'a lost frame was fused');
+    const back = slam.pushFrame(c, d, i++);
+    assert.equal(back.verdict, 'recovered');
+    assert.deepEqual(back.counts, { tracked: i - 2, lost: 1, recovered: 1, lostStreak: 0 });
     assert.ok(slam.positions().every(Number.isFinite));
   } finally {
     slam.free();
