@@ -361,6 +361,14 @@ impl Pipeline {
     }
 
     /// Processes one decoded frame. On error nothing changes.
+    ///
+    /// A frame judged lost is not fused and its pose is held at the last good
+    /// one. While lost (and whenever the normal tracker fails) a wider
+    /// re-acquisition search runs from the last good pose against the model
+    /// seen from there; a re-acquired frame is reported as
+    /// [`Verdict::Recovered`] and fused. When the map is at
+    /// `FusionConfig::max_surfels`, stale unstable surfels are evicted first,
+    /// then new surfels are skipped (`FusionStats::skipped`).
     pub fn push_frame(
         &mut self,
         frame: &RgbdFrame,

@@ -274,3 +274,37 @@ fn bad_folders_and_settings_are_refused_by_name() {
     let a = run(&good, &[]);
     assert_eq!(a.code, 0, "{}", a.stderr);
 }
+
+#[test]
+fn lost_and_recovered_frames_are_reported() {
+    let tmp = scratch("lost");
+    let (dir, _, depth) = tum_clip(&tmp.0, "rgbd_dataset_freiburg3_blank");
+    let blank = DynamicImage::ImageLuma16(image::ImageBuffer::from_pixel(
+        640,
+        480,
+        image::Luma([0u16]),
+    ));
+    std::fs::write(dir.join(&depth[2]), png(&blank)).expect("write");
+    let a = run(&dir, &[]);
+    eprintln!("{}{}", a.stderr, a.stdout);
+    assert_eq!(a.code, 0, "{}", a.stderr);
+    assert!(
+        a.stderr.contains("frame 2 (")
+            && a.stderr
+                .contains("lost: too-few-inliers (map kept, frame not fused)"),
+        "{}",
+        a.stderr
+    );
+    assert!(
+        a.stderr.contains("frame 3 (")
+            && a.stderr
+                .contains("recovered: re-acquired against the map after 1 lost frame(s)"),
+        "{}",
+        a.stderr
+    );
+    assert!(
+        a.stdout.contains("2 tracked, 1 lost, 1 recovered"),
+        "{}",
+        a.stdout
+    );
+}

@@ -57,6 +57,9 @@ struct RunArgs {
     /// Number of frames to use (default: all).
     #[arg(long)]
     count: Option<usize>,
+    /// Keep every Nth frame only (simulates dropped frames or a slower camera).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    stride: u32,
     /// Camera preset (tum-fr1, tum-fr2, tum-fr3, icl-nuim, 7-scenes); default from the layout.
     #[arg(long)]
     preset: Option<String>,
@@ -191,6 +194,7 @@ fn run(args: &RunArgs) -> Result<u8> {
         .frames
         .iter()
         .skip(args.first)
+        .step_by(args.stride as usize)
         .take(args.count.unwrap_or(usize::MAX))
         .collect();
     if frames.is_empty() {
@@ -231,16 +235,27 @@ fn run(args: &RunArgs) -> Result<u8> {
             Ok((report, elapsed)) => {
                 ms.push(elapsed);
                 match report.verdict {
-                    Verdict::Lost(reason) => bar.println(format!(
-                        "frame {} ({}) lost: {} (map kept, frame not fused)",
-                        entry.index,
-                        entry.timestamp,
-                        reason.name()
-                    )),
-                    Verdict::Recovered => bar.println(format!(
-                        "frame {} ({}) recovered: re-acquired against the map after {streak} lost frame(s)",
-                        entry.index, entry.timestamp,
-                    )),
+                    // suspend, not println: a hidden bar (--quiet, no
+                    // terminal) drops println's lines.
+                    Verdict::Lost(reason) => bar.suspend(|| {
+                        eprintln!(
+                            "frame {} ({}) lost: {} (map kept, frame not fused)",
+                            entry.index,
+                            entry.timestamp,
+                            reason.name()
+                        );
+                    }),
+                    Verdict::Recovered => bar.suspend(|| {
+                        let why = if streak == 0 {
+                            "the normal tracker failed".to_owned()
+                        } else {
+                            format!("{streak} lost frame(s)")
+                        };
+                        eprintln!(
+                            "frame {} ({}) recovered: re-acquired against the map after {why}",
+                            entry.index, entry.timestamp,
+                        );
+                    }),
                     _ => {}
                 }
                 streak = report.counts.lost_streak;
