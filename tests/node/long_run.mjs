@@ -92,6 +92,20 @@ export async function longRun(pkg, folder, { frames, maxSurfels = null, every = 
       }
     }
   }
+  // Ground truth in the looped order, stamped like the estimate (frame count).
+  const truth = new Map((sequence.groundTruth ?? []).map((row) => [row[0], row.slice(1)]));
+  const gtLines = order.flatMap((k, i) => {
+    const row = truth.get(sequence.frames[k].timestamp);
+    return row ? [`${i} ${row.join(' ')}`] : [];
+  });
+  let ate = null;
+  if (gtLines.length >= 3) {
+    try {
+      ate = pkg.ateTum(slam.trajectoryTum(), gtLines.join('\n') + '\n', 0);
+    } catch {
+      ate = null;
+    }
+  }
   const positions = slam.positions();
   let finiteMap = true;
   for (let i = 0; i < positions.length; i++) {
@@ -113,6 +127,7 @@ export async function longRun(pkg, folder, { frames, maxSurfels = null, every = 
     maxSurfelsSeen: maxSeen,
     stoppedGrowingAt,
     finalMemory: pkg.memory.buffer.byteLength,
+    ate,
     msPerFrame: (performance.now() - t0) / order.length,
   };
   slam.free();
@@ -166,6 +181,7 @@ async function main() {
     console.log(`  memory from frame ${after[0].frame} on: ${mib(after[0].memory)} -> ${mib(r.finalMemory)}`);
   }
   console.log(`  ${r.msPerFrame.toFixed(0)} ms/frame (file reads included); map finite: ${r.finiteMap}; non-finite poses: ${r.nonFinitePoses}`);
+  if (r.ate) console.log(`  ATE over the whole looped run: ${(r.ate.rmse * 100).toFixed(2)} cm rmse, ${(r.ate.max * 100).toFixed(2)} cm max (${r.ate.pairs} poses)`);
 }
 
 if (process.argv[1] && path.resolve(process.argv[1]) === fileURLToPath(import.meta.url)) {
