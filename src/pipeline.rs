@@ -46,20 +46,30 @@ impl SlamConfig {
 
     /// Checks intrinsics, depth settings and pyramid against each other.
     pub fn validate(&self) -> Result<(), PipelineError> {
-        if let Some(problem) = self.intrinsics.problem() {
-            return Err(PipelineError::InvalidConfig(format!(
-                "camera intrinsics: {problem}"
-            )));
+        let k = &self.intrinsics;
+        let intrinsics_error =
+            |problem: String| PipelineError::InvalidConfig(format!("camera intrinsics: {problem}"));
+        let problem = k.problem();
+        let size_ok = (1..=16384).contains(&k.width) && (1..=16384).contains(&k.height);
+        if !size_ok {
+            if let Some(problem) = problem {
+                return Err(intrinsics_error(problem));
+            }
         }
-        self.depth.validate()?;
+        // An image too small for the pyramid is the more basic problem:
+        // reported before the focal length and principal point.
         let levels = self.preprocess.levels;
-        let min_side = self.intrinsics.width.min(self.intrinsics.height);
+        let min_side = k.width.min(k.height);
         if levels == 0 || levels > 5 || (min_side >> (levels - 1)) < 8 {
             return Err(PipelineError::InvalidConfig(format!(
                 "{levels} pyramid levels do not fit a {}x{} image",
-                self.intrinsics.width, self.intrinsics.height
+                k.width, k.height
             )));
         }
+        if let Some(problem) = problem {
+            return Err(intrinsics_error(problem));
+        }
+        self.depth.validate()?;
         if self.tracker.iterations.len() < levels {
             return Err(PipelineError::InvalidConfig(format!(
                 "tracker needs iterations for {levels} levels, got {:?}",
