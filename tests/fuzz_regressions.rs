@@ -1,5 +1,6 @@
-//! Replays every input kept from fuzzing (`fuzz/seeds/<target>/` and the
-//! crashes found, `fuzz/regressions/<target>/`) through the same harness the
+//! Replays every input kept from fuzzing (`fuzz/seeds/<target>/`, a sample of
+//! the corpus the fuzzers grew, `fuzz/found/<target>/`, and the crashes found,
+//! `fuzz/regressions/<target>/`) through the same harness the
 //! fuzz targets run (`fuzz/harness.rs`), under plain `cargo test`: no fuzzer,
 //! no nightly. See fuzz/README.md for running the fuzzers themselves.
 
@@ -14,7 +15,7 @@ use surfel_slam::{DepthSettings, FrameError, RgbdFrame};
 fn inputs(target: &str) -> Vec<(PathBuf, Vec<u8>)> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fuzz");
     let mut out = Vec::new();
-    for kind in ["seeds", "regressions"] {
+    for kind in ["seeds", "found", "regressions"] {
         let Ok(dir) = std::fs::read_dir(root.join(kind).join(target)) else {
             continue;
         };
