@@ -304,8 +304,17 @@ fn tum_teddy_with_dropped_blank_and_foreign_frames() {
     let last_bad = verdicts.iter().rposition(|v| v.2).expect("bad frames");
     let after: Vec<&Verdict> = verdicts[last_bad + 1..].iter().map(|v| &v.0).collect();
     let reacquired = after.iter().position(|v| v.is_fused());
+    let bad_verdicts: Vec<&str> = verdicts
+        .iter()
+        .filter(|v| v.2)
+        .map(|v| match v.0 {
+            Verdict::Lost(reason) => reason.name(),
+            other => other.name(),
+        })
+        .collect();
     eprintln!(
         "teddy with dropped/blank/foreign frames: {} frames pushed, {} tracked, {} lost, {} recovered; \
+         bad frames (blank, blank, ICL-NUIM, blank): {bad_verdicts:?}; \
          re-acquired {:?} frames after the last bad one; {} of the last {} fused; \
          ATE {:.2} cm over {} fused poses; surfels {} ({} stable) before the bad frames, {} ({} stable) at the end",
         verdicts.len(),
