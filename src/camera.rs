@@ -41,16 +41,56 @@ impl Intrinsics {
     /// Checks that the values are finite, the focal lengths non-zero and the size non-empty.
     #[must_use]
     pub fn is_valid(&self) -> bool {
-        let finite = [self.fx, self.fy, self.cx, self.cy]
-            .iter()
-            .all(|v| v.is_finite());
-        finite
-            && self.fx.abs() > 1.0
-            && self.fy.abs() > 1.0
-            && self.width > 0
-            && self.height > 0
-            && self.width <= 16384
-            && self.height <= 16384
+        self.problem().is_none()
+    }
+
+    /// What is wrong with these intrinsics, naming the field, or `None`.
+    /// Refused: non-finite values; an empty or oversized image (1..=16384
+    /// px per side); a focal length whose field of view is wider than about
+    /// 170 degrees or narrower than about 0.6 degrees (|f| outside 0.05..100
+    /// times the larger side); a principal point more than half the image
+    /// size outside the image. Such values are typos or unit mix-ups (metres
+    /// or millimetres for pixels), never a real RGB-D camera.
+    #[must_use]
+    pub fn problem(&self) -> Option<String> {
+        let fields = [
+            ("fx", self.fx),
+            ("fy", self.fy),
+            ("cx", self.cx),
+            ("cy", self.cy),
+        ];
+        if let Some((name, v)) = fields.iter().find(|(_, v)| !v.is_finite()) {
+            return Some(format!("{name} must be a finite number of pixels, got {v}"));
+        }
+        if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
+            return Some(format!(
+                "image size {}x{} must be 1..=16384 pixels per side",
+                self.width, self.height
+            ));
+        }
+        let side = self.width.max(self.height) as f32;
+        for (name, f) in [("fx", self.fx), ("fy", self.fy)] {
+            if !(f.abs() >= (0.05 * side).max(1.0) && f.abs() <= 100.0 * side) {
+                return Some(format!(
+                    "{name} = {f} px is not a plausible focal length for a {}x{} image \
+                     (expected |{name}| between {:.0} and {:.0} px)",
+                    self.width,
+                    self.height,
+                    (0.05 * side).max(1.0),
+                    100.0 * side
+                ));
+            }
+        }
+        for (name, c, size) in [("cx", self.cx, self.width), ("cy", self.cy, self.height)] {
+            let size = size as f32;
+            if !(c >= -0.5 * size && c <= 1.5 * size) {
+                return Some(format!(
+                    "{name} = {c} px puts the principal point far outside the {}x{} image",
+                    self.width, self.height
+                ));
+            }
+        }
+        None
     }
 
     /// Mean absolute focal length, pixels: the scale of one pixel at 1 m depth.
@@ -133,6 +173,38 @@ mod tests {
         let p = k.back_project(100.25, 300.5, 2.0);
         let px = k.project(p);
         assert!((px.x - 100.25).abs() < 1e-4 && (px.y - 300.5).abs() < 1e-4);
+    }
+
+    #[test]
+    fn absurd_intrinsics_are_named() {
+        let good = Intrinsics::new(535.4, 539.2, 320.1, 247.6, 640, 480);
+        assert!(good.is_valid());
+        let cases = [
+            (
+                Intrinsics {
+                    fx: f32::NAN,
+                    ..good
+                },
+                "fx",
+            ),
+            (
+                Intrinsics {
+                    cy: f32::INFINITY,
+                    ..good
+                },
+                "cy",
+            ),
+            (Intrinsics { fx: 0.5354, ..good }, "fx"),
+            (Intrinsics { fy: 5.4e6, ..good }, "fy"),
+            (Intrinsics { cx: 3201.0, ..good }, "cx"),
+            (Intrinsics { width: 0, ..good }, "size"),
+        ];
+        for (k, field) in cases {
+            let problem = k.problem().expect("refused");
+            assert!(problem.contains(field), "{problem}");
+        }
+        // ICL-NUIM's negative fy is fine.
+        assert!(Intrinsics { fy: -480.0, ..good }.is_valid());
     }
 
     #[test]

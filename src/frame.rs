@@ -78,12 +78,21 @@ pub enum FrameError {
         expected: usize,
     },
     /// The image is empty or implausibly large.
-    #[error("image size {width}x{height} is not supported (1..=16384 per side)")]
+    #[error("image size {width}x{height} is not supported (1..=16384 per side, at most 16.7 million pixels)")]
     BadDimensions {
         /// Width, pixels.
         width: usize,
         /// Height, pixels.
         height: usize,
+    },
+    /// A decoded depth value is NaN, infinite or negative (only possible in a
+    /// frame built by hand: decoding never produces one).
+    #[error("depth must be a finite number of metres >= 0 (0 = no measurement); pixel {pixel} holds {value}")]
+    InvalidDepth {
+        /// Row-major pixel index.
+        pixel: usize,
+        /// The offending value, metres.
+        value: f32,
     },
     /// The depth conversion settings are unusable.
     #[error("invalid depth settings: {0}")]
@@ -163,15 +172,55 @@ pub struct RgbdFrame {
     pub depth_m: Vec<f32>,
 }
 
+/// Largest side accepted, pixels.
+pub const MAX_SIDE: usize = 16384;
+/// Largest image accepted, pixels (4096 x 4096): far above any RGB-D sensor,
+/// and low enough that a forged header cannot make the decoder allocate
+/// gigabytes (a wasm module has 4 GiB at most).
+pub const MAX_PIXELS: usize = 1 << 24;
+
 fn check_dimensions(width: usize, height: usize) -> Result<(), FrameError> {
-    if width == 0 || height == 0 || width > 16384 || height > 16384 {
+    if width == 0
+        || height == 0
+        || width > MAX_SIDE
+        || height > MAX_SIDE
+        || width * height > MAX_PIXELS
+    {
         return Err(FrameError::BadDimensions { width, height });
     }
     Ok(())
 }
 
+/// Reads an image's size from its header alone (no pixel decoding) and
+/// checks it is supported; `png_only` refuses other formats. Run before
+/// decoding so that a forged header is refused before any allocation.
+pub fn image_dimensions(
+    bytes: &[u8],
+    channel: Channel,
+    png_only: bool,
+) -> Result<(usize, usize), FrameError> {
+    let decode_error = |message: String| FrameError::Decode { channel, message };
+    let reader = image::ImageReader::new(std::io::Cursor::new(bytes));
+    let reader = if png_only {
+        let mut r = reader;
+        r.set_format(ImageFormat::Png);
+        r
+    } else {
+        reader
+            .with_guessed_format()
+            .map_err(|e| decode_error(e.to_string()))?
+    };
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| decode_error(e.to_string()))?;
+    let (w, h) = (w as usize, h as usize);
+    check_dimensions(w, h)?;
+    Ok((w, h))
+}
+
 /// Decodes a colour image (PNG or JPEG bytes) to RGB8; returns (width, height, rgb).
 pub fn decode_colour(bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), FrameError> {
+    image_dimensions(bytes, Channel::Colour, false)?;
     let img = image::load_from_memory(bytes).map_err(|e| FrameError::Decode {
         channel: Channel::Colour,
         message: e.to_string(),
@@ -187,6 +236,7 @@ pub fn decode_colour(bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), FrameError
 
 /// Decodes a 16-bit single-channel depth PNG; returns (width, height, raw values).
 pub fn decode_depth_raw(bytes: &[u8]) -> Result<(usize, usize, Vec<u16>), FrameError> {
+    image_dimensions(bytes, Channel::Depth, true)?;
     let img = image::load_from_memory_with_format(bytes, ImageFormat::Png).map_err(|e| {
         FrameError::Decode {
             channel: Channel::Depth,
@@ -269,6 +319,39 @@ impl RgbdFrame {
             rgb,
             depth_m: depth_raw.iter().map(|&r| settings.to_metres(r)).collect(),
         })
+    }
+
+    /// Checks what a frame built by hand (its fields are public) could get
+    /// wrong: a supported size, buffer lengths matching it, every depth
+    /// finite and >= 0. Decoded frames always pass.
+    pub fn validate(&self) -> Result<(), FrameError> {
+        check_dimensions(self.width, self.height)?;
+        let n = self.width * self.height;
+        if self.depth_m.len() != n {
+            return Err(FrameError::BufferLength {
+                channel: Channel::Depth,
+                found: self.depth_m.len(),
+                expected: n,
+            });
+        }
+        if self.rgb.len() != 3 * n {
+            return Err(FrameError::BufferLength {
+                channel: Channel::Colour,
+                found: self.rgb.len(),
+                expected: 3 * n,
+            });
+        }
+        match self
+            .depth_m
+            .iter()
+            .position(|d| !(d.is_finite() && *d >= 0.0))
+        {
+            Some(pixel) => Err(FrameError::InvalidDepth {
+                pixel,
+                value: self.depth_m[pixel],
+            }),
+            None => Ok(()),
+        }
     }
 
     /// Errors unless the frame is `width` x `height`.

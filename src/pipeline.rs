@@ -11,6 +11,7 @@ use crate::fusion::{
     remove_unstable, FusionConfig, FusionStats, Integrator, Prediction, SurfelMap,
 };
 use crate::preprocess::{half_resolution_into, FramePyramid, PreprocessConfig};
+use crate::se3;
 use crate::track::{track, LostReason, TrackerConfig};
 use glam::DAffine3;
 use thiserror::Error;
@@ -59,13 +60,18 @@ impl SlamConfig {
 
     /// Checks intrinsics, depth settings and pyramid against each other.
     pub fn validate(&self) -> Result<(), PipelineError> {
-        if !self.intrinsics.is_valid() {
-            return Err(PipelineError::InvalidConfig(format!(
-                "intrinsics must be finite with |f| > 1 px and a size of 1..=16384 px: {:?}",
-                self.intrinsics
-            )));
+        let k = &self.intrinsics;
+        let intrinsics_error =
+            |problem: String| PipelineError::InvalidConfig(format!("camera intrinsics: {problem}"));
+        let problem = k.problem();
+        let size_ok = (1..=16384).contains(&k.width) && (1..=16384).contains(&k.height);
+        if !size_ok {
+            if let Some(problem) = problem {
+                return Err(intrinsics_error(problem));
+            }
         }
-        self.depth.validate()?;
+        // An image too small for the pyramid is the more basic problem:
+        // reported before the focal length and principal point.
         let levels = self.preprocess.levels;
         let working = self.working_intrinsics();
         let min_side = working.width.min(working.height);
@@ -75,6 +81,10 @@ impl SlamConfig {
                 working.width, working.height
             )));
         }
+        if let Some(problem) = problem {
+            return Err(intrinsics_error(problem));
+        }
+        self.depth.validate()?;
         if self.tracker.iterations.len() < levels {
             return Err(PipelineError::InvalidConfig(format!(
                 "tracker needs iterations for {levels} levels, got {:?}",
@@ -103,20 +113,76 @@ pub enum Verdict {
     Initialised,
     /// Tracked against the model and fused.
     Tracked,
+    /// Re-acquired against the model and fused: the frame before was lost,
+    /// or the normal tracker failed on this frame and the wider
+    /// re-acquisition search (see [`Pipeline::push_frame`]) succeeded.
+    Recovered,
     /// Not tracked; not fused; the pose is held at the last good one.
     Lost(LostReason),
 }
 
 impl Verdict {
-    /// Short name: `initialised`, `tracked`, `lost`.
+    /// Short name: `initialised`, `tracked`, `recovered`, `lost`.
     #[must_use]
     pub fn name(&self) -> &'static str {
         match self {
             Verdict::Initialised => "initialised",
             Verdict::Tracked => "tracked",
+            Verdict::Recovered => "recovered",
             Verdict::Lost(_) => "lost",
         }
     }
+
+    /// True when the frame was fused (initialised, tracked or recovered).
+    #[must_use]
+    pub fn is_fused(&self) -> bool {
+        !matches!(self, Verdict::Lost(_))
+    }
+}
+
+/// How many frames got each verdict since creation or the last reset.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct VerdictCounts {
+    /// Frames tracked normally (the first frame included).
+    pub tracked: u32,
+    /// Frames lost (not fused).
+    pub lost: u32,
+    /// Frames re-acquired after a loss.
+    pub recovered: u32,
+    /// Frames lost in a row up to the last one (0 when tracking).
+    pub lost_streak: u32,
+}
+
+/// Re-acquisition accepts a pose only from a view that pins all six degrees
+/// of freedom well: without the previous frame's pose as a prior, ICP on a
+/// view dominated by one or two planes slides along them to a wrong pose with
+/// a tiny residual. Measured (conditioning of the final 6x6 system): every
+/// tracked frame of TUM fr3/teddy >= 0.0079; a synthetic view of a wall and
+/// the floor that slid 22 cm on re-acquisition: 0.0005.
+const RECOVERY_MIN_CONDITIONING: f64 = 2e-3;
+
+/// Re-acquisition search: gates wide enough to pull in a pose several
+/// frames' motion away (dropped frames, a fast turn), more iterations at the
+/// coarse levels where the wide gate is cheap. Its result is then checked by
+/// the normal tracker, so the wide gates never decide alone.
+fn recovery_tracker(normal: &TrackerConfig) -> TrackerConfig {
+    let mut wide = normal.clone();
+    wide.gates.distance_gate_m = (normal.gates.distance_gate_m * 3.0).max(0.3);
+    wide.gates.normal_gate_deg = normal.gates.normal_gate_deg.max(45.0);
+    wide.gates.huber_m = normal.gates.huber_m * 2.0;
+    let last = wide.iterations.len().saturating_sub(1);
+    for (level, n) in wide.iterations.iter_mut().enumerate() {
+        // Finest level unchanged; coarser levels get 3x, the coarsest 4x.
+        *n = match level {
+            0 => *n,
+            l if l == last => *n * 4,
+            _ => *n * 3,
+        };
+    }
+    // Motion plausibility is judged against the last good pose by the caller.
+    wide.max_translation_m = f64::INFINITY;
+    wide.max_rotation_deg = f64::INFINITY;
+    wide
 }
 
 /// Milliseconds spent in each stage of one frame.
@@ -159,6 +225,8 @@ pub struct FrameReport {
     pub surfels: usize,
     /// Fusion counts.
     pub fusion: FusionStats,
+    /// Verdict counts of the run so far, this frame included.
+    pub counts: VerdictCounts,
     /// Stage timings.
     pub timings: StageTimings,
 }
@@ -176,6 +244,8 @@ pub struct Pipeline {
     trajectory: Vec<(f64, DAffine3)>,
     last_good: Option<DAffine3>,
     frame_index: u32,
+    counts: VerdictCounts,
+    recovery: TrackerConfig,
 }
 
 impl Pipeline {
@@ -185,6 +255,7 @@ impl Pipeline {
         Ok(Self {
             pyramid: FramePyramid::new(&config.working_intrinsics(), &config.preprocess),
             half_frame: RgbdFrame::default(),
+            recovery: recovery_tracker(&config.tracker),
             config,
             map: SurfelMap::default(),
             prediction: Prediction::default(),
@@ -192,6 +263,7 @@ impl Pipeline {
             trajectory: Vec::new(),
             last_good: None,
             frame_index: 0,
+            counts: VerdictCounts::default(),
         })
     }
 
@@ -225,12 +297,19 @@ impl Pipeline {
         self.frame_index
     }
 
+    /// Verdict counts since creation or the last reset.
+    #[must_use]
+    pub fn counts(&self) -> VerdictCounts {
+        self.counts
+    }
+
     /// Forgets the map and trajectory, keeping configuration and buffers.
     pub fn reset(&mut self) {
         self.map.clear();
         self.trajectory.clear();
         self.last_good = None;
         self.frame_index = 0;
+        self.counts = VerdictCounts::default();
         self.prediction.valid = 0;
     }
 
@@ -250,7 +329,74 @@ impl Pipeline {
         Ok(report)
     }
 
+    /// Tracks the pyramid's frame from `previous` (the last good pose). When
+    /// the normal tracker fails, or the frames before were lost, the wider
+    /// re-acquisition search runs from `previous` against the model
+    /// prediction (still the one rendered at `previous`: lost frames do not
+    /// touch it); its result counts only if the normal tracker, started
+    /// there, accepts it and the motion since `previous` is plausible for the
+    /// number of frames lost.
+    fn track_or_recover(
+        &self,
+        previous: &DAffine3,
+    ) -> (Verdict, DAffine3, Option<crate::track::TrackResult>) {
+        let normal = &self.config.tracker;
+        let first = track(&self.pyramid, &self.prediction, previous, normal);
+        let was_lost = self.counts.lost_streak > 0;
+        let pinned = |r: &crate::track::TrackResult| {
+            !was_lost || r.conditioning >= RECOVERY_MIN_CONDITIONING
+        };
+        if first.lost.is_none() && first.world_from_camera.is_finite() && pinned(&first) {
+            let verdict = if was_lost {
+                Verdict::Recovered
+            } else {
+                Verdict::Tracked
+            };
+            return (verdict, first.world_from_camera, Some(first));
+        }
+        let lost = |result: crate::track::TrackResult| {
+            let reason = result.lost.unwrap_or(LostReason::IllConditioned);
+            (Verdict::Lost(reason), *previous, Some(result))
+        };
+        // Nothing to search with: skip the (costlier) wide attempt.
+        if first.lost == Some(LostReason::TooFewInliers) && first.inliers < normal.min_inliers / 4 {
+            return lost(first);
+        }
+        let wide = track(&self.pyramid, &self.prediction, previous, &self.recovery);
+        if !wide.world_from_camera.is_finite() {
+            return lost(first);
+        }
+        let check = track(
+            &self.pyramid,
+            &self.prediction,
+            &wide.world_from_camera,
+            normal,
+        );
+        // The camera may have moved for every frame lost since `previous`.
+        let frames = f64::from(self.counts.lost_streak.min(10) + 1);
+        let (dt, dr) = se3::motion_magnitude(&(previous.inverse() * check.world_from_camera));
+        let plausible = dt <= normal.max_translation_m * frames
+            && dr.to_degrees() <= (normal.max_rotation_deg * frames).min(90.0);
+        if check.lost.is_none()
+            && plausible
+            && check.conditioning >= RECOVERY_MIN_CONDITIONING
+            && check.world_from_camera.is_finite()
+        {
+            (Verdict::Recovered, check.world_from_camera, Some(check))
+        } else {
+            lost(first)
+        }
+    }
+
     /// Processes one decoded frame. On error nothing changes.
+    ///
+    /// A frame judged lost is not fused and its pose is held at the last good
+    /// one. While lost (and whenever the normal tracker fails) a wider
+    /// re-acquisition search runs from the last good pose against the model
+    /// seen from there; a re-acquired frame is reported as
+    /// [`Verdict::Recovered`] and fused. When the map is at
+    /// `FusionConfig::max_surfels`, stale unstable surfels are evicted first,
+    /// then new surfels are skipped (`FusionStats::skipped`).
     pub fn push_frame(
         &mut self,
         frame: &RgbdFrame,
@@ -258,6 +404,7 @@ impl Pipeline {
     ) -> Result<FrameReport, PipelineError> {
         let input = self.config.intrinsics;
         frame.expect_size(input.width, input.height)?;
+        frame.validate()?;
         let k = self.config.working_intrinsics();
         let t0 = now_ms();
         let frame = if self.config.half_resolution {
@@ -273,24 +420,21 @@ impl Pipeline {
         let index = self.frame_index;
         let (verdict, pose, stats) = match self.last_good {
             None => (Verdict::Initialised, DAffine3::IDENTITY, None),
-            Some(previous) => {
-                let result = track(
-                    &self.pyramid,
-                    &self.prediction,
-                    &previous,
-                    &self.config.tracker,
-                );
-                match result.lost {
-                    None => (Verdict::Tracked, result.world_from_camera, Some(result)),
-                    Some(reason) => (Verdict::Lost(reason), previous, Some(result)),
-                }
-            }
+            Some(previous) => self.track_or_recover(&previous),
         };
         let t2 = now_ms();
 
         let mut fusion = FusionStats::default();
         let mut t3 = t2;
-        if !matches!(verdict, Verdict::Lost(_)) {
+        if verdict.is_fused() {
+            let budget = self.config.fusion.max_surfels;
+            if self.map.len() >= budget {
+                // Full: evict stale unstable surfels now rather than at the
+                // next scheduled cleanup; adds beyond the budget are skipped
+                // (counted in `FusionStats::skipped`).
+                fusion.removed = remove_unstable(&mut self.map, &self.config.fusion, index);
+            }
+            let removed_early = fusion.removed;
             fusion = self.integrator.integrate(
                 &mut self.map,
                 &self.pyramid,
@@ -300,21 +444,39 @@ impl Pipeline {
                 &self.config.fusion,
                 self.config.depth.max_m,
             );
+            fusion.removed = removed_early;
             if index % self.config.fusion.cleanup_interval_frames.max(1) == 0 {
-                fusion.removed = remove_unstable(&mut self.map, &self.config.fusion, index);
+                fusion.removed += remove_unstable(&mut self.map, &self.config.fusion, index);
             }
             t3 = now_ms();
             let fusion_cfg = self.config.fusion;
             let map = &self.map;
+            // The warm-up counts fused frames: frames lost early must not end
+            // it before the map had the frames to become stable.
+            let fused = self.counts.tracked + self.counts.recovered;
             let far_m = self.config.depth.max_m;
             self.prediction
                 .render(map, &pose, &k, (fusion_cfg.depth_gate_m, far_m), |i| {
-                    fusion_cfg.predicts(map, i, index)
+                    fusion_cfg.predicts(map, i, fused)
                 });
             self.last_good = Some(pose);
         }
         let t4 = now_ms();
 
+        match verdict {
+            Verdict::Lost(_) => {
+                self.counts.lost += 1;
+                self.counts.lost_streak += 1;
+            }
+            Verdict::Recovered => {
+                self.counts.recovered += 1;
+                self.counts.lost_streak = 0;
+            }
+            Verdict::Initialised | Verdict::Tracked => {
+                self.counts.tracked += 1;
+                self.counts.lost_streak = 0;
+            }
+        }
         self.trajectory.push((timestamp, pose));
         self.frame_index += 1;
         Ok(FrameReport {
@@ -328,6 +490,7 @@ impl Pipeline {
             conditioning: stats.map_or(1.0, |s| s.conditioning),
             surfels: self.map.len(),
             fusion,
+            counts: self.counts,
             timings: StageTimings {
                 decode_ms: 0.0,
                 preprocess_ms: t1 - t0,

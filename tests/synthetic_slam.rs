@@ -145,5 +145,5 @@ fn a_frame_without_depth_is_lost_and_leaves_the_map_alone() {
     assert!(slam.push_png(b"garbage", b"garbage", 4.0).is_err());
     assert_eq!(slam.map().len(), surfels);
     let r = slam.push_frame(&frame(4), 4.0).expect("push");
-    assert_eq!(r.verdict, Verdict::Tracked);
+    assert_eq!(r.verdict, Verdict::Recovered);
 }

@@ -13,6 +13,7 @@ const status = {
   ready: false,
   framesProcessed: 0,
   framesLost: 0,
+  framesRecovered: 0,
   framesFailed: 0,
   surfels: 0,
   threads: 0,
@@ -95,6 +96,7 @@ const stats = new Stats($('stats'));
 function syncStatus() {
   status.framesProcessed = stats.framesProcessed;
   status.framesLost = stats.framesLost;
+  status.framesRecovered = stats.framesRecovered;
   status.framesFailed = stats.framesFailed;
   status.surfels = stats.surfels;
   status.ate = stats.ate;

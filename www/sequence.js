@@ -124,7 +124,10 @@ export async function fromManifest(manifestUrl) {
  */
 export function setupSequenceInput({ input, dropTarget, onSequence, onError }) {
   input.addEventListener('change', () => {
-    if (!input.files || input.files.length === 0) return;
+    if (!input.files || input.files.length === 0) {
+      onError('the chosen folder is empty: no files to read');
+      return;
+    }
     const seq = fromFileList(input.files);
     input.value = '';
     if (seq.entries.length === 0) onError('the chosen folder holds no visible file');

@@ -15,6 +15,7 @@ export class Stats {
     this.framesProcessed = 0;
     this.framesTracked = 0;
     this.framesLost = 0;
+    this.framesRecovered = 0;
     this.framesFailed = 0;
     this.surfels = 0;
     this.changed = undefined;
@@ -37,6 +38,7 @@ export class Stats {
     const r = msg.result;
     this.framesProcessed++;
     if (r.verdict === 'lost') this.framesLost++;
+    else if (r.verdict === 'recovered') this.framesRecovered++;
     else this.framesTracked++;
     this.lastVerdict = r.verdict;
     this.lastLostReason = r.lostReason ?? null;
@@ -82,7 +84,7 @@ export class Stats {
     const rows = [
       ['frame', this.frameIndex >= 0 ? `${this.frameIndex + 1} / ${this.frameCount}` : '–'],
       ['processed', `${this.framesProcessed}`],
-      ['tracked / lost', `${this.framesTracked} / ${this.framesLost}`],
+      ['tracked / lost / recovered', `${this.framesTracked} / ${this.framesLost} / ${this.framesRecovered}`],
       ['failed (errors)', `${this.framesFailed}`],
       ['last verdict', this.lastVerdict ? this.lastVerdict + (this.lastLostReason ? ` (${this.lastLostReason})` : '') : '–'],
       ['surfels', this.surfels.toLocaleString('en-US')],

@@ -94,14 +94,16 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
     let mut slam = Pipeline::new(config)?;
 
     let mut timings = Vec::with_capacity(total);
-    let (mut lost, mut failed) = (0usize, 0usize);
+    let (mut lost, mut recovered, mut failed) = (0usize, 0usize, 0usize);
     for i in 0..total {
         let k = ping_pong(i, sequence.frames.len());
         let (colour, depth) = &bytes[k];
         match slam.push_png(colour, depth, sequence.frames[k].timestamp) {
             Ok(report) => {
-                if matches!(report.verdict, Verdict::Lost(_)) {
-                    lost += 1;
+                match report.verdict {
+                    Verdict::Lost(_) => lost += 1,
+                    Verdict::Recovered => recovered += 1,
+                    _ => {}
                 }
                 timings.push(report.timings);
             }
@@ -114,7 +116,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
 
     let size = slam.config().intrinsics;
     println!(
-        "{}: {} frames at {}x{}, {lost} lost, {failed} unreadable, {} surfels, {} rayon threads",
+        "{}: {} frames at {}x{}, {lost} lost, {recovered} recovered, {failed} unreadable, {} surfels, {} rayon threads",
         args.dataset.display(),
         total,
         size.width,

@@ -1,4 +1,9 @@
 //! `surfel-slam`: run dense RGB-D SLAM over a dataset folder, or evaluate a trajectory.
+//!
+//! Exit codes: 0 success; 1 the run could not start or finish (unreadable
+//! folder, unknown layout, bad camera settings, ...; the message names the
+//! file or setting); 2 bad command line; 3 the run finished but some frames
+//! were skipped as unreadable (each was named on stderr).
 
 mod bench;
 
@@ -6,7 +11,8 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
-use surfel_slam::dataset::{ply::write_ply, read_frame, trajectory, Sequence};
+use std::process::ExitCode;
+use surfel_slam::dataset::{ply::write_ply, read_frame, trajectory, FrameEntry, Sequence};
 use surfel_slam::eval::{ate, rpe};
 use surfel_slam::{CameraPreset, Pipeline, SlamConfig, Verdict};
 
@@ -56,6 +62,9 @@ struct RunArgs {
     /// Number of frames to use (default: all).
     #[arg(long)]
     count: Option<usize>,
+    /// Keep every Nth frame only (simulates dropped frames or a slower camera).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    stride: u32,
     /// Camera preset (tum-fr1, tum-fr2, tum-fr3, icl-nuim, 7-scenes); default from the layout.
     #[arg(long)]
     preset: Option<String>,
@@ -74,11 +83,18 @@ pub(crate) struct TrackingArgs {
     /// Track and fuse at half resolution (e.g. 320x240 from 640x480).
     #[arg(long)]
     half: bool,
+    /// Surfel budget: when the map holds this many, stale unstable surfels
+    /// are evicted and further new surfels skipped (merges continue).
+    #[arg(long)]
+    max_surfels: Option<usize>,
 }
 
 impl TrackingArgs {
     pub(crate) fn apply(&self, config: &mut SlamConfig) -> Result<()> {
         config.half_resolution = self.half;
+        if let Some(n) = self.max_surfels {
+            config.fusion.max_surfels = n;
+        }
         Ok(())
     }
 }
@@ -108,15 +124,43 @@ pub(crate) struct CameraOverrides {
     depth_max: Option<f32>,
 }
 
-fn main() -> Result<()> {
-    match Cli::parse().command {
+/// Exit code of a run that finished with some frames skipped as unreadable.
+const EXIT_FRAMES_SKIPPED: u8 = 3;
+
+fn main() -> ExitCode {
+    let result = match Cli::parse().command {
         Command::Run(args) => run(&args),
-        Command::Bench(args) => bench::bench(&args),
+        Command::Bench(args) => bench::bench(&args).map(|()| 0),
         Command::Eval {
             estimate,
             ground_truth,
-        } => evaluate(&estimate, &ground_truth),
+        } => evaluate(&estimate, &ground_truth).map(|()| 0),
+    };
+    match result {
+        Ok(0) => ExitCode::SUCCESS,
+        Ok(code) => ExitCode::from(code),
+        Err(e) => {
+            eprintln!("error: {}", describe(&e));
+            ExitCode::FAILURE
+        }
     }
+}
+
+/// The error and its causes joined by ": ", skipping a cause whose text the
+/// message already holds (library errors name their file and repeat their
+/// source's text).
+fn describe(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if !out.contains(&text) {
+            if !out.is_empty() {
+                out.push_str(": ");
+            }
+            out.push_str(&text);
+        }
+    }
+    out
 }
 
 pub(crate) fn config_for(
@@ -141,16 +185,42 @@ pub(crate) fn config_for(
     d.scale = o.depth_scale.unwrap_or(d.scale);
     d.min_m = o.depth_min.unwrap_or(d.min_m);
     d.max_m = o.depth_max.unwrap_or(d.max_m);
+    // Refuse bad camera settings before reading any image.
+    config.validate()?;
     Ok(config)
 }
 
-fn run(args: &RunArgs) -> Result<()> {
+/// The first frame that decodes, for the sequence's image size; the frames
+/// before it are named on stderr.
+fn first_readable(
+    dir: &Path,
+    frames: &[&FrameEntry],
+    config: &SlamConfig,
+) -> Result<(usize, usize)> {
+    let mut last_error = None;
+    for entry in frames {
+        match read_frame(dir, entry, &config.depth) {
+            Ok(f) => return Ok((f.width, f.height)),
+            Err(e) => {
+                eprintln!("frame {} unreadable: {e}", entry.index);
+                last_error = Some(e);
+            }
+        }
+    }
+    match last_error {
+        Some(e) => Err(e).context("no frame of the sequence could be read"),
+        None => bail!("no frames selected"),
+    }
+}
+
+fn run(args: &RunArgs) -> Result<u8> {
     let sequence = Sequence::open(&args.dataset)
         .with_context(|| format!("opening {}", args.dataset.display()))?;
     let frames: Vec<_> = sequence
         .frames
         .iter()
         .skip(args.first)
+        .step_by(args.stride as usize)
         .take(args.count.unwrap_or(usize::MAX))
         .collect();
     if frames.is_empty() {
@@ -163,9 +233,9 @@ fn run(args: &RunArgs) -> Result<()> {
     let mut config = config_for(&sequence, args.preset.as_deref(), &args.overrides)?;
     args.tracking.apply(&mut config)?;
     // The sequence's own image size wins over the preset's.
-    let first = read_frame(&args.dataset, frames[0], &config.depth)?;
-    config.intrinsics.width = first.width;
-    config.intrinsics.height = first.height;
+    let (width, height) = first_readable(&args.dataset, &frames, &config)?;
+    config.intrinsics.width = width;
+    config.intrinsics.height = height;
     let mut slam = Pipeline::new(config)?;
 
     let bar = if args.quiet {
@@ -177,32 +247,50 @@ fn run(args: &RunArgs) -> Result<()> {
         ProgressStyle::with_template("{bar:40} {pos}/{len} {msg}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let (mut lost, mut failed, mut ms) = (0usize, 0usize, Vec::new());
+    let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
     for entry in &frames {
         let result = read_frame(&args.dataset, entry, &slam.config().depth)
             .map_err(anyhow::Error::from)
             .and_then(|f| {
                 let t0 = std::time::Instant::now();
-                let r = slam.push_frame(&f, entry.timestamp)?;
+                let r = slam
+                    .push_frame(&f, entry.timestamp)
+                    .with_context(|| format!("{} + {}", entry.colour, entry.depth))?;
                 Ok((r, t0.elapsed().as_secs_f64() * 1000.0))
             });
         match result {
             Ok((report, elapsed)) => {
                 ms.push(elapsed);
-                if let Verdict::Lost(reason) = report.verdict {
-                    lost += 1;
-                    bar.println(format!(
-                        "frame {} ({}) lost: {}",
-                        entry.index,
-                        entry.timestamp,
-                        reason.name()
-                    ));
+                match report.verdict {
+                    // suspend, not println: a hidden bar (--quiet, no
+                    // terminal) drops println's lines.
+                    Verdict::Lost(reason) => bar.suspend(|| {
+                        eprintln!(
+                            "frame {} ({}) lost: {} (map kept, frame not fused)",
+                            entry.index,
+                            entry.timestamp,
+                            reason.name()
+                        );
+                    }),
+                    Verdict::Recovered => bar.suspend(|| {
+                        let why = if streak == 0 {
+                            "the normal tracker failed".to_owned()
+                        } else {
+                            format!("{streak} lost frame(s)")
+                        };
+                        eprintln!(
+                            "frame {} ({}) recovered: re-acquired against the map after {why}",
+                            entry.index, entry.timestamp,
+                        );
+                    }),
+                    _ => {}
                 }
+                streak = report.counts.lost_streak;
                 bar.set_message(format!("{} surfels", report.surfels));
             }
             Err(e) => {
                 failed += 1;
-                bar.println(format!("frame {} skipped: {e:#}", entry.index));
+                bar.suspend(|| eprintln!("frame {} skipped: {}", entry.index, describe(&e)));
             }
         }
         bar.inc(1);
@@ -220,7 +308,7 @@ fn run(args: &RunArgs) -> Result<()> {
     ms.sort_by(f64::total_cmp);
     let mean = ms.iter().sum::<f64>() / ms.len().max(1) as f64;
     let median = ms.get(ms.len() / 2).copied().unwrap_or(0.0);
-    let tracked = slam.trajectory().len() - lost;
+    let counts = slam.counts();
     let accuracy = if sequence.ground_truth.is_empty() {
         "ATE n/a (no ground truth)".to_string()
     } else {
@@ -230,12 +318,15 @@ fn run(args: &RunArgs) -> Result<()> {
         }
     };
     println!(
-        "{}: {} frames, {tracked} tracked, {lost} lost, {failed} unreadable, {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
+        "{}: {} frames, {} tracked, {} lost, {} recovered, {failed} unreadable, {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
         args.dataset.display(),
         frames.len(),
+        counts.tracked,
+        counts.lost,
+        counts.recovered,
         slam.map().len(),
     );
-    Ok(())
+    Ok(if failed > 0 { EXIT_FRAMES_SKIPPED } else { 0 })
 }
 
 fn evaluate(estimate: &Path, ground_truth: &Path) -> Result<()> {

@@ -136,7 +136,8 @@ pub fn decode_frame(
                 channel: Channel::Depth,
                 ..
             }
-            | FrameError::DepthNot16Bit { .. } => entry.depth.clone(),
+            | FrameError::DepthNot16Bit { .. }
+            | FrameError::InvalidDepth { .. } => entry.depth.clone(),
             _ => format!("{} + {}", entry.colour, entry.depth),
         };
         DatasetError::Frame { path, source }

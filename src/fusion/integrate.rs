@@ -33,6 +33,8 @@ pub struct FusionStats {
     pub removed: usize,
     /// Measurements neither merged nor added: a neighbouring pixel's surfel covers them.
     pub covered: usize,
+    /// New surfels not added because the map was at `max_surfels`.
+    pub skipped: usize,
 }
 
 /// Reusable buffers for fusing frames of one resolution.
@@ -206,6 +208,10 @@ impl Integrator {
             let m = measure(i);
             if covered_by_neighbour(&self.best, map, (i % w, i / w), (w, h), &m, cos_gate) {
                 stats.covered += 1;
+                continue;
+            }
+            if map.len() >= config.max_surfels {
+                stats.skipped += 1;
                 continue;
             }
             map.push(m.position, m.normal, m.colour, m.radius, m.weight, frame);

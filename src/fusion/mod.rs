@@ -39,6 +39,10 @@ pub struct FusionConfig {
     pub warmup_frames: u32,
     /// Cap on a surfel's radius, metres.
     pub max_radius_m: f32,
+    /// Surfel budget. When the map holds this many, the pipeline first
+    /// evicts stale unstable surfels, then new surfels are skipped (counted
+    /// in `FusionStats::skipped`) while merges go on. 44 bytes per surfel.
+    pub max_surfels: usize,
 }
 
 impl Default for FusionConfig {
@@ -52,6 +56,7 @@ impl Default for FusionConfig {
             cleanup_interval_frames: 10,
             warmup_frames: 10,
             max_radius_m: 0.05,
+            max_surfels: 4_000_000,
         }
     }
 }

@@ -34,6 +34,8 @@ export interface SlamConfig {
   icpDistance?: number; icpNormalDeg?: number;
   minInliers?: number; minInlierRatio?: number; maxResidual?: number;
   stableConfidence?: number;
+  /** Surfel budget: when reached, stale unstable surfels are evicted, then new surfels skipped. */
+  maxSurfels?: number;
 }
 
 export interface Preset {
@@ -45,7 +47,8 @@ export interface Preset {
 export interface FrameReport {
   index: number;
   timestamp: number;
-  verdict: 'initialised' | 'tracked' | 'lost';
+  /** 'recovered': re-acquired against the map after a loss (fused). */
+  verdict: 'initialised' | 'tracked' | 'recovered' | 'lost';
   lostReason: null | 'too-few-inliers' | 'high-residual' | 'ill-conditioned' | 'implausible-motion';
   /** world_from_camera, 4x4 column-major, metres. */
   pose: Float64Array;
@@ -57,6 +60,10 @@ export interface FrameReport {
   residual: number;
   conditioning: number;
   surfels: number; merged: number; added: number; removed: number;
+  /** New surfels not added because the map was at maxSurfels. */
+  skipped: number;
+  /** Verdict counts of the run so far, this frame included; lostStreak: frames lost in a row. */
+  counts: { tracked: number; lost: number; recovered: number; lostStreak: number };
   /** Milliseconds per stage. */
   timings: { decode: number; preprocess: number; track: number; fuse: number; predict: number; total: number };
 }
@@ -147,6 +154,7 @@ const CONFIG_KEYS: &[&str] = &[
     "minInlierRatio",
     "maxResidual",
     "stableConfidence",
+    "maxSurfels",
 ];
 
 /// A JS config object, read field by field.
@@ -362,6 +370,9 @@ pub fn slam_config_from_js(config: &JsValue) -> Result<SlamConfig, String> {
     if let Some(v) = f.f32("stableConfidence")? {
         cfg.fusion.stable_confidence = v;
     }
+    if let Some(v) = f.integer("maxSurfels", 1e9)? {
+        cfg.fusion.max_surfels = v;
+    }
     Ok(cfg)
 }
 
@@ -432,6 +443,17 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
         ("merged", (r.fusion.merged as f64).into()),
         ("added", (r.fusion.added as f64).into()),
         ("removed", (r.fusion.removed as f64).into()),
+        ("skipped", (r.fusion.skipped as f64).into()),
+        (
+            "counts",
+            object(&[
+                ("tracked", r.counts.tracked.into()),
+                ("lost", r.counts.lost.into()),
+                ("recovered", r.counts.recovered.into()),
+                ("lostStreak", r.counts.lost_streak.into()),
+            ])
+            .into(),
+        ),
         ("timings", timings.into()),
     ])
     .into()

@@ -1,6 +1,8 @@
 // The page plays the bundled sample by itself in headless Chromium, with the
 // threaded wasm module, keeps tracking, draws a non-blank map, and makes no
-// request outside its own origin.
+// request outside its own origin. The network is cut for it: every request
+// that would leave the origin is aborted (and recorded), so the page is shown
+// to work offline, not only to stay quiet.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import {
@@ -21,6 +23,13 @@ const MAX_LOST = 2;
 test('bundled sample plays with the threaded module and draws the map', { timeout: 300_000 }, async (t) => {
   if (skipUnlessReady(t)) return;
   const env = await startBrowser();
+  const blocked = [];
+  await env.context.route('**/*', (route) => {
+    const url = route.request().url();
+    if (url.startsWith('blob:') || url.startsWith('data:') || new URL(url).origin === env.origin) return route.continue();
+    blocked.push(url);
+    return route.abort('internetdisconnected');
+  });
   try {
     const { page, requests, consoleErrors } = await openPage(env, '/');
     const started = Date.now();
@@ -61,8 +70,13 @@ test('bundled sample plays with the threaded module and draws the map', { timeou
 
     const foreign = foreignRequests(requests, env.origin);
     assert.deepEqual(foreign, [], `requests outside ${env.origin}: ${foreign.join(', ')}`);
+    assert.deepEqual(blocked, [], `requests the cut network refused: ${blocked.join(', ')}`);
     assert.ok(requests.some((u) => u.endsWith('.wasm')), 'the wasm module was requested (request log works)');
     assert.deepEqual(consoleErrors, [], 'no console errors');
+    // The cut is real: a request elsewhere is refused and recorded.
+    const outcome = await page.evaluate(() => fetch('https://cdn.example.com/lib.js').then(() => 'fetched', () => 'refused'));
+    assert.equal(outcome, 'refused');
+    assert.deepEqual(blocked, ['https://cdn.example.com/lib.js']);
   } finally {
     await env.close();
   }

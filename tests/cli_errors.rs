@@ -1,0 +1,310 @@
+//! The command line on bad input: every case is refused with a message on
+//! stderr naming the file (or the setting) and the problem, and a documented
+//! exit code (1: nothing could run; 3: the run finished, some frames were
+//! skipped). Folders are cut from the bundled sample clip (always present).
+//!
+//! Run with `--nocapture` to print the table of answers.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use image::{imageops::FilterType, DynamicImage, ImageFormat};
+
+const CLIP: &str = "www/sample/tum_fr3_teddy_clip";
+const FRAMES: usize = 4;
+
+/// A scratch directory removed on drop.
+struct Scratch(PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn scratch(name: &str) -> Scratch {
+    let dir = std::env::temp_dir().join(format!("surfel-slam-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    Scratch(dir)
+}
+
+/// A TUM folder with the clip's first `FRAMES` frames; returns (dir, colour paths, depth paths).
+fn tum_clip(root: &Path, name: &str) -> (PathBuf, Vec<String>, Vec<String>) {
+    let src = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(CLIP);
+    let dst = root.join(name);
+    let mut lists = Vec::new();
+    for (file, sub) in [("rgb.txt", "rgb"), ("depth.txt", "depth")] {
+        std::fs::create_dir_all(dst.join(sub)).expect("dir");
+        let text = std::fs::read_to_string(src.join(file)).expect("index");
+        let rows: Vec<&str> = text
+            .lines()
+            .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+            .take(FRAMES)
+            .collect();
+        let mut paths = Vec::new();
+        for row in &rows {
+            let rel = row.split_whitespace().nth(1).expect("path");
+            std::fs::copy(src.join(rel), dst.join(rel)).expect("copy");
+            paths.push(rel.to_owned());
+        }
+        std::fs::write(dst.join(file), rows.join("\n") + "\n").expect("write");
+        lists.push(paths);
+    }
+    let gt = std::fs::read_to_string(src.join("groundtruth.txt")).expect("gt");
+    std::fs::write(dst.join("groundtruth.txt"), gt).expect("gt");
+    let depth = lists.pop().expect("depth");
+    let colour = lists.pop().expect("colour");
+    (dst, colour, depth)
+}
+
+fn png(img: &DynamicImage) -> Vec<u8> {
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, ImageFormat::Png).expect("encode");
+    out.into_inner()
+}
+
+fn load(path: &Path) -> DynamicImage {
+    image::open(path).expect("decodable")
+}
+
+struct Answer {
+    code: i32,
+    stderr: String,
+    stdout: String,
+}
+
+fn run(dir: &Path, extra: &[&str]) -> Answer {
+    let out = Command::new(env!("CARGO_BIN_EXE_surfel-slam"))
+        .arg("run")
+        .arg(dir)
+        .arg("--quiet")
+        .args(extra)
+        .output()
+        .expect("the CLI runs");
+    Answer {
+        code: out.status.code().unwrap_or(-1),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+    }
+}
+
+/// Checks the exit code and that stderr holds every needle; prints the answer.
+fn expect(case: &str, a: &Answer, code: i32, needles: &[&str]) {
+    let message = a
+        .stderr
+        .lines()
+        .find(|l| l.starts_with("error") || l.contains("skipped") || l.contains("unreadable"))
+        .unwrap_or("");
+    eprintln!("| {case} | exit {} | {message} |", a.code);
+    assert_eq!(a.code, code, "{case}: exit code; stderr:\n{}", a.stderr);
+    for n in needles {
+        assert!(
+            a.stderr.contains(n),
+            "{case}: stderr lacks {n:?}:\n{}",
+            a.stderr
+        );
+    }
+}
+
+#[test]
+fn bad_frames_are_named_and_skipped() {
+    let tmp = scratch("frames");
+    let (dir, colour, depth) = tum_clip(&tmp.0, "rgbd_dataset_freiburg3_bad");
+    let depth1 = load(&dir.join(&depth[1]));
+    let colour1 = load(&dir.join(&colour[1]));
+    // The first frame is good; frame 1 gets each defect in turn.
+    type Defect = (&'static str, Box<dyn Fn()>, Vec<String>);
+    let base = |s: &str| s.rsplit('/').next().unwrap_or(s).to_owned();
+    let (c1, d1) = (dir.join(&colour[1]), dir.join(&depth[1]));
+    let cases: Vec<Defect> = vec![
+        (
+            "corrupt colour PNG",
+            Box::new({
+                let c1 = c1.clone();
+                move || std::fs::write(&c1, b"this is not a PNG".repeat(20)).expect("write")
+            }),
+            vec![base(&colour[1]), "could not be decoded".into()],
+        ),
+        (
+            "truncated depth PNG",
+            Box::new({
+                let d1 = d1.clone();
+                let bytes = png(&depth1);
+                move || std::fs::write(&d1, &bytes[..bytes.len() / 2]).expect("write")
+            }),
+            vec![base(&depth[1]), "could not be decoded".into()],
+        ),
+        (
+            "8-bit depth PNG",
+            Box::new({
+                let d1 = d1.clone();
+                let bytes = png(&DynamicImage::ImageLuma8(depth1.to_luma8()));
+                move || std::fs::write(&d1, &bytes).expect("write")
+            }),
+            vec![base(&depth[1]), "16-bit".into()],
+        ),
+        (
+            "RGB depth PNG",
+            Box::new({
+                let d1 = d1.clone();
+                let bytes = png(&DynamicImage::ImageRgb8(depth1.to_rgb8()));
+                move || std::fs::write(&d1, &bytes).expect("write")
+            }),
+            vec![base(&depth[1]), "16-bit".into()],
+        ),
+        (
+            "colour/depth size mismatch",
+            Box::new({
+                let c1 = c1.clone();
+                let bytes = png(&colour1.resize_exact(320, 240, FilterType::Nearest));
+                move || std::fs::write(&c1, &bytes).expect("write")
+            }),
+            vec![
+                base(&colour[1]),
+                "colour is 320x240 but depth is 640x480".into(),
+            ],
+        ),
+        (
+            "frame size differs from the sequence's",
+            Box::new({
+                let (c1, d1) = (c1.clone(), d1.clone());
+                let cb = png(&colour1.resize_exact(320, 240, FilterType::Nearest));
+                let db = png(&depth1.resize_exact(320, 240, FilterType::Nearest));
+                move || {
+                    std::fs::write(&c1, &cb).expect("write");
+                    std::fs::write(&d1, &db).expect("write");
+                }
+            }),
+            vec![
+                base(&depth[1]),
+                "frame is 320x240 but the sequence is 640x480".into(),
+            ],
+        ),
+    ];
+    let (good_c, good_d) = (
+        std::fs::read(&c1).expect("c"),
+        std::fs::read(&d1).expect("d"),
+    );
+    for (case, damage, needles) in cases {
+        std::fs::write(&c1, &good_c).expect("restore");
+        std::fs::write(&d1, &good_d).expect("restore");
+        damage();
+        let a = run(&dir, &[]);
+        let needles: Vec<&str> = needles.iter().map(String::as_str).collect();
+        expect(case, &a, 3, &needles);
+        // The other frames were processed: the pipeline stayed usable.
+        assert!(
+            a.stdout.contains(&format!("{FRAMES} frames")) && a.stdout.contains("1 unreadable"),
+            "{case}: {}",
+            a.stdout
+        );
+        assert!(a.stdout.contains(" 0 lost"), "{case}: {}", a.stdout);
+    }
+}
+
+#[test]
+fn bad_folders_and_settings_are_refused_by_name() {
+    let tmp = scratch("folders");
+    let (good, _, depth) = tum_clip(&tmp.0, "good");
+
+    let a = run(&good, &["--fx", "NaN"]);
+    expect("non-finite intrinsics (--fx NaN)", &a, 1, &["fx", "finite"]);
+    let a = run(&good, &["--fx", "0.5354"]);
+    expect("absurd intrinsics (--fx 0.5354)", &a, 1, &["fx = 0.5354"]);
+    let a = run(&good, &["--cy", "1e9"]);
+    expect("absurd principal point (--cy 1e9)", &a, 1, &["cy"]);
+    let a = run(&good, &["--depth-scale", "0"]);
+    expect("depth scale 0", &a, 1, &["depth scale"]);
+
+    let empty = tmp.0.join("empty");
+    std::fs::create_dir_all(&empty).expect("dir");
+    let a = run(&empty, &[]);
+    expect("empty folder", &a, 1, &["empty", "empty"]);
+
+    let photos = tmp.0.join("holiday_photos");
+    std::fs::create_dir_all(&photos).expect("dir");
+    std::fs::write(photos.join("beach.jpg"), b"not really").expect("write");
+    std::fs::write(photos.join("notes.txt"), b"hello").expect("write");
+    let a = run(&photos, &[]);
+    expect(
+        "folder in no known layout",
+        &a,
+        1,
+        &["holiday_photos", "unrecognised dataset layout", "beach.jpg"],
+    );
+
+    let (missing, _, _) = tum_clip(&tmp.0, "missing");
+    std::fs::remove_file(missing.join(&depth[2])).expect("remove");
+    let a = run(&missing, &[]);
+    expect(
+        "file listed in an index is missing",
+        &a,
+        1,
+        &[depth[2].as_str(), "is missing (listed in depth.txt)"],
+    );
+
+    let (bad_gt, _, _) = tum_clip(&tmp.0, "bad_gt");
+    let gt = std::fs::read_to_string(bad_gt.join("groundtruth.txt")).expect("gt");
+    let mut lines: Vec<&str> = gt.lines().collect();
+    lines.insert(5, "1341841873.5 1.0 2.0 oops 0 0 0 1");
+    std::fs::write(bad_gt.join("groundtruth.txt"), lines.join("\n")).expect("write");
+    let a = run(&bad_gt, &[]);
+    expect(
+        "malformed ground-truth line",
+        &a,
+        1,
+        &["groundtruth.txt, line 6", "oops"],
+    );
+
+    // Nothing readable at all.
+    let (all_bad, colour, _) = tum_clip(&tmp.0, "all_bad");
+    for c in &colour {
+        std::fs::write(all_bad.join(c), b"garbage").expect("write");
+    }
+    let a = run(&all_bad, &[]);
+    expect(
+        "no readable frame",
+        &a,
+        1,
+        &["no frame of the sequence could be read"],
+    );
+
+    // And the good folder runs clean.
+    let a = run(&good, &[]);
+    assert_eq!(a.code, 0, "{}", a.stderr);
+}
+
+#[test]
+fn lost_and_recovered_frames_are_reported() {
+    let tmp = scratch("lost");
+    let (dir, _, depth) = tum_clip(&tmp.0, "rgbd_dataset_freiburg3_blank");
+    let blank = DynamicImage::ImageLuma16(image::ImageBuffer::from_pixel(
+        640,
+        480,
+        image::Luma([0u16]),
+    ));
+    std::fs::write(dir.join(&depth[2]), png(&blank)).expect("write");
+    let a = run(&dir, &[]);
+    eprintln!("{}{}", a.stderr, a.stdout);
+    assert_eq!(a.code, 0, "{}", a.stderr);
+    assert!(
+        a.stderr.contains("frame 2 (")
+            && a.stderr
+                .contains("lost: too-few-inliers (map kept, frame not fused)"),
+        "{}",
+        a.stderr
+    );
+    assert!(
+        a.stderr.contains("frame 3 (")
+            && a.stderr
+                .contains("recovered: re-acquired against the map after 1 lost frame(s)"),
+        "{}",
+        a.stderr
+    );
+    assert!(
+        a.stdout.contains("2 tracked, 1 lost, 1 recovered"),
+        "{}",
+        a.stdout
+    );
+}
