@@ -18,8 +18,11 @@ use surfel_slam::{CameraPreset, Pipeline, RgbdFrame, SlamConfig};
 /// Frames fused before the map-sized benchmarks.
 const MAP_FRAMES: usize = 60;
 
-/// PNG bytes (colour, depth) of consecutive frames, and the matching config.
-fn frames() -> (SlamConfig, Vec<(Vec<u8>, Vec<u8>)>) {
+/// PNG bytes of one frame: colour, depth.
+type PngPair = (Vec<u8>, Vec<u8>);
+
+/// PNG bytes of consecutive frames, and the matching config.
+fn frames() -> (SlamConfig, Vec<PngPair>) {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/tum_fr3_teddy");
     if let Ok(sequence) = Sequence::open(&dir) {
         let bytes = sequence
@@ -55,7 +58,7 @@ fn frames() -> (SlamConfig, Vec<(Vec<u8>, Vec<u8>)>) {
 /// pose, and the next frame decoded.
 struct Fixture {
     config: SlamConfig,
-    bytes: Vec<(Vec<u8>, Vec<u8>)>,
+    bytes: Vec<PngPair>,
     slam: Pipeline,
     pose: DAffine3,
     next: RgbdFrame,

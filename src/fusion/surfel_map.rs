@@ -203,9 +203,10 @@ impl SurfelMap {
     /// which `keep(i)` is true, preserving order. Costs O(len - start).
     pub fn retain_from(&mut self, start: usize, mut keep: impl FnMut(usize) -> bool) {
         let len = self.len();
-        let mut write = start.min(len);
+        let start = start.min(len);
+        let mut write = start;
         let mut first_removed = None;
-        for read in write..len {
+        for read in start..len {
             if !keep(read) {
                 first_removed.get_or_insert(read);
                 continue;
