@@ -234,45 +234,85 @@ fn bilateral_into(
     wsum: &mut [f32],
     out: &mut [f32],
 ) {
-    let h = (depth.len() / w) as isize;
-    let wi = w as isize;
+    #[cfg(target_arch = "x86_64")]
+    let avx2 = std::arch::is_x86_feature_detected!("avx2");
     out.par_chunks_mut(w)
         .zip(wsum.par_chunks_mut(w))
         .enumerate()
         .for_each(|(v, (acc, wacc))| {
-            acc.fill(0.0);
-            wacc.fill(0.0);
-            let centre = &depth[v * w..v * w + w];
-            for &(dx, dy, ws) in taps {
-                let y = v as isize + dy;
-                if y < 0 || y >= h {
-                    continue;
-                }
-                let lo = (-dx).max(0);
-                let hi = (wi - dx).min(wi);
-                if lo >= hi {
-                    continue;
-                }
-                let row = &depth[(y * wi) as usize..((y + 1) * wi) as usize];
-                let (lo, hi) = (lo as usize, hi as usize);
-                let src = &row[(lo as isize + dx) as usize..(hi as isize + dx) as usize];
-                accumulate(
-                    src,
-                    &centre[lo..hi],
-                    ws,
-                    inv_two_sigma2,
-                    &mut acc[lo..hi],
-                    &mut wacc[lo..hi],
-                );
+            let row = BilateralRow {
+                depth,
+                w,
+                taps,
+                inv_two_sigma2,
+            };
+            #[cfg(target_arch = "x86_64")]
+            if avx2 {
+                // SAFETY: the CPU was just checked to support AVX2.
+                unsafe { row.filter_avx2(v, acc, wacc) };
+                return;
             }
-            normalise(acc, wacc, centre);
+            row.filter(v, acc, wacc);
         });
+}
+
+/// The inputs of the bilateral filter, for filtering one output row.
+struct BilateralRow<'a> {
+    depth: &'a [f32],
+    w: usize,
+    taps: &'a [(isize, isize, f32)],
+    inv_two_sigma2: f32,
+}
+
+impl BilateralRow<'_> {
+    /// Output row `v` into `acc`, with `wacc` as the weight sums.
+    #[inline(always)]
+    fn filter(&self, v: usize, acc: &mut [f32], wacc: &mut [f32]) {
+        let (depth, w) = (self.depth, self.w);
+        let h = (depth.len() / w) as isize;
+        let wi = w as isize;
+        acc.fill(0.0);
+        wacc.fill(0.0);
+        let centre = &depth[v * w..v * w + w];
+        for &(dx, dy, ws) in self.taps {
+            let y = v as isize + dy;
+            if y < 0 || y >= h {
+                continue;
+            }
+            let lo = (-dx).max(0);
+            let hi = (wi - dx).min(wi);
+            if lo >= hi {
+                continue;
+            }
+            let row = &depth[(y * wi) as usize..((y + 1) * wi) as usize];
+            let (lo, hi) = (lo as usize, hi as usize);
+            let src = &row[(lo as isize + dx) as usize..(hi as isize + dx) as usize];
+            accumulate(
+                src,
+                &centre[lo..hi],
+                ws,
+                self.inv_two_sigma2,
+                &mut acc[lo..hi],
+                &mut wacc[lo..hi],
+            );
+        }
+        normalise(acc, wacc, centre);
+    }
+
+    /// [`Self::filter`] compiled for AVX2: 8 lanes instead of baseline
+    /// x86-64's 4, the same operations in the same order (no FMA
+    /// contraction), so the same results bit for bit.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn filter_avx2(&self, v: usize, acc: &mut [f32], wacc: &mut [f32]) {
+        self.filter(v, acc, wacc);
+    }
 }
 
 /// One tap of the bilateral filter over a row: `acc += wgt * src`,
 /// `wacc += wgt`, with `wgt = spatial * range(src - centre)` and 0 where
 /// `src` is invalid.
-#[inline]
+#[inline(always)]
 fn accumulate(
     src: &[f32],
     centre: &[f32],
@@ -305,7 +345,7 @@ fn accumulate(
 }
 
 /// `acc /= wacc`, keeping invalid centres invalid (the filter fills no holes).
-#[inline]
+#[inline(always)]
 fn normalise(acc: &mut [f32], wacc: &[f32], centre: &[f32]) {
     for ((a, &wa), &c) in acc.iter_mut().zip(wacc).zip(centre) {
         *a = if c > 0.0 && wa > 0.0 { *a / wa } else { c };
