@@ -19,6 +19,12 @@ use icp::{icp_step, IcpGates};
 pub struct TrackerConfig {
     /// Gauss-Newton iterations per level, finest first (solved coarsest first).
     pub iterations: Vec<usize>,
+    /// At the finest level only the last this many iterations use every
+    /// model pixel; the earlier ones use every second pixel in each
+    /// direction, a quarter of the cost. Measured with 2 (against all 10
+    /// dense): TUM fr3/teddy ATE 0.75 vs 0.73-0.77 cm, ICL-NUIM kt0 0.012 cm
+    /// both, and the tracking stage about 2x faster; with 0: teddy 0.83 cm.
+    pub dense_final_iterations: usize,
     /// Correspondence gates and robust weight.
     pub gates: IcpGates,
     /// Stop iterating a level when the step is below this (rad or m).
@@ -41,6 +47,7 @@ impl Default for TrackerConfig {
     fn default() -> Self {
         Self {
             iterations: vec![10, 5, 4],
+            dense_final_iterations: 2,
             gates: IcpGates {
                 distance_gate_m: 0.10,
                 normal_gate_deg: 20.0,
@@ -100,6 +107,22 @@ pub struct TrackResult {
     pub lost: Option<LostReason>,
 }
 
+/// Step between the model pixels used as ICP sources at `level` in iteration
+/// `iteration` of `iterations` (matching the level's downsampling, and
+/// sparser for the finest level's early iterations).
+fn source_stride(
+    level: usize,
+    iteration: usize,
+    iterations: usize,
+    config: &TrackerConfig,
+) -> usize {
+    if level == 0 && iteration + config.dense_final_iterations < iterations {
+        2
+    } else {
+        1 << level
+    }
+}
+
 /// Aligns the frame in `pyramid` with the model `prediction`, starting from `initial`.
 #[must_use]
 pub fn track(
@@ -112,8 +135,9 @@ pub fn track(
     let mut last = icp::IcpStep::default();
     let levels = pyramid.levels.len().min(config.iterations.len());
     for level in (0..levels).rev() {
-        let stride = 1 << level;
-        for _ in 0..config.iterations[level] {
+        let iterations = config.iterations[level];
+        for iteration in 0..iterations {
+            let stride = source_stride(level, iteration, iterations, config);
             let t = RigidF32::from_affine(&camera_from_world);
             last = icp_step(
                 prediction,
