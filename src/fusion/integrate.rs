@@ -12,7 +12,7 @@
 
 use super::chunk_bounds::CHUNK;
 use super::frustum::visible_chunks;
-use super::index_map::{for_each_in, pixel_of, RigidF32};
+use super::index_map::{pixel_of, RigidF32};
 use super::surfel_map::ChunkMut;
 use super::{FusionConfig, SurfelMap};
 use crate::camera::Intrinsics;
@@ -45,6 +45,10 @@ pub struct Integrator {
     best: Vec<AtomicU64>,
     visible: Vec<Range<usize>>,
     chunks: Vec<ChunkUpdate>,
+    /// Per surfel: the pixel it is a candidate of this frame, or `NO_PIXEL`.
+    pixels: Vec<u32>,
+    /// Per pixel: whether it adds a new surfel.
+    adds: Vec<bool>,
     /// Radial confidence weight per column and per row (it is separable).
     weight_u: Vec<f32>,
     weight_v: Vec<f32>,
@@ -70,6 +74,9 @@ impl Default for ChunkUpdate {
         }
     }
 }
+
+/// Marks a surfel that is no pixel's candidate this frame.
+const NO_PIXEL: u32 = u32::MAX;
 
 /// One measurement in the world frame, with its weight.
 struct Measurement {
@@ -114,26 +121,49 @@ impl Integrator {
             far_m + config.depth_gate_m,
             &mut self.visible,
         );
+        self.chunks.clear();
+        self.chunks
+            .resize(map.bounds().len(), ChunkUpdate::default());
+        for r in &self.visible {
+            if let Some(c) = self.chunks.get_mut(r.start / CHUNK) {
+                c.visible = true;
+            }
+        }
+        let chunks = &self.chunks;
         let cos_gate = config.normal_gate_deg.to_radians().cos();
         let best = &self.best;
         let map_ref = &*map;
-        for_each_in(&self.visible, |j| {
-            let q = camera_from_world.point(map_ref.positions[j]);
-            let Some((z, pixel)) = pixel_of(k, q) else {
-                return;
-            };
-            let p = level0.vertices[pixel];
-            let n = level0.normals[pixel];
-            if p.z <= 0.0 || n == Vec3::ZERO || (z - p.z).abs() > config.depth_gate_m {
-                return;
-            }
-            if camera_from_world.vector(map_ref.normals[j]).dot(n) < cos_gate {
-                return;
-            }
-            // Confidences are positive, so their bit patterns order like the values.
-            let key = (u64::from(map_ref.confidences[j].max(0.0).to_bits()) << 32) | (j as u64 + 1);
-            best[pixel].fetch_max(key, Ordering::Relaxed);
-        });
+        // Each candidate surfel's pixel is kept for the merge pass.
+        self.pixels.resize(map.len(), NO_PIXEL);
+        self.pixels
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(c, pixels)| {
+                if !chunks.get(c).is_some_and(|u| u.visible) {
+                    return;
+                }
+                for (local, slot) in pixels.iter_mut().enumerate() {
+                    let j = c * CHUNK + local;
+                    *slot = NO_PIXEL;
+                    let q = camera_from_world.point(map_ref.positions[j]);
+                    let Some((z, pixel)) = pixel_of(k, q) else {
+                        continue;
+                    };
+                    let p = level0.vertices[pixel];
+                    let n = level0.normals[pixel];
+                    if p.z <= 0.0 || n == Vec3::ZERO || (z - p.z).abs() > config.depth_gate_m {
+                        continue;
+                    }
+                    if camera_from_world.vector(map_ref.normals[j]).dot(n) < cos_gate {
+                        continue;
+                    }
+                    *slot = pixel as u32;
+                    // Confidences are positive, so their bit patterns order like the values.
+                    let key = (u64::from(map_ref.confidences[j].max(0.0).to_bits()) << 32)
+                        | (j as u64 + 1);
+                    best[pixel].fetch_max(key, Ordering::Relaxed);
+                }
+            });
 
         // gamma^2 = ((u - cx)^2 + (v - cy)^2) / |c|^2, so the weight
         // exp(-gamma^2 / (2 sigma^2)) is a product of a column and a row factor.
@@ -164,29 +194,20 @@ impl Integrator {
             }
         };
 
-        self.chunks.clear();
-        self.chunks
-            .resize(map.bounds().len(), ChunkUpdate::default());
-        for r in &self.visible {
-            if let Some(c) = self.chunks.get_mut(r.start / CHUNK) {
-                c.visible = true;
-            }
-        }
+        let pixels = &self.pixels;
         map.for_each_chunk_mut(&mut self.chunks, |mut chunk, update| {
             if !update.visible {
                 return;
             }
             for local in 0..chunk.positions.len() {
-                let q = camera_from_world.point(chunk.positions[local]);
-                let Some((_, pixel)) = pixel_of(k, q) else {
-                    continue;
-                };
-                if best[pixel].load(Ordering::Relaxed) & 0xffff_ffff
-                    != (chunk.first + local) as u64 + 1
+                let j = chunk.first + local;
+                let pixel = pixels[j];
+                if pixel == NO_PIXEL
+                    || best[pixel as usize].load(Ordering::Relaxed) & 0xffff_ffff != j as u64 + 1
                 {
                     continue;
                 }
-                let p = merge(&mut chunk, local, &measure(pixel), frame);
+                let p = merge(&mut chunk, local, &measure(pixel as usize), frame);
                 update.min = update.min.min(p);
                 update.max = update.max.max(p);
                 update.merged += 1;
@@ -199,21 +220,45 @@ impl Integrator {
                 stats.merged += update.merged;
             }
         }
+        // Which pixels add a surfel is decided in parallel (the map is only
+        // read); the surfels are appended in pixel order.
         let h = k.height;
-        for (i, best) in self.best.iter().enumerate() {
-            let p = level0.vertices[i];
-            if p.z <= 0.0 || level0.normals[i] == Vec3::ZERO || best.load(Ordering::Relaxed) != 0 {
-                continue;
-            }
-            let m = measure(i);
-            if covered_by_neighbour(&self.best, map, (i % w, i / w), (w, h), &m, cos_gate) {
-                stats.covered += 1;
-                continue;
-            }
+        let map_ref = &*map;
+        self.adds.resize(n, false);
+        stats.covered = self
+            .adds
+            .par_chunks_mut(w)
+            .enumerate()
+            .map(|(v, row)| {
+                let mut covered = 0;
+                for (u, add) in row.iter_mut().enumerate() {
+                    let i = v * w + u;
+                    *add = level0.vertices[i].z > 0.0
+                        && level0.normals[i] != Vec3::ZERO
+                        && best[i].load(Ordering::Relaxed) == 0;
+                    if *add
+                        && covered_by_neighbour(
+                            best,
+                            map_ref,
+                            (u, v),
+                            (w, h),
+                            &measure(i),
+                            cos_gate,
+                        )
+                    {
+                        *add = false;
+                        covered += 1;
+                    }
+                }
+                covered
+            })
+            .sum();
+        for (i, _) in self.adds.iter().enumerate().filter(|(_, &add)| add) {
             if map.len() >= config.max_surfels {
                 stats.skipped += 1;
                 continue;
             }
+            let m = measure(i);
             map.push(m.position, m.normal, m.colour, m.radius, m.weight, frame);
             stats.added += 1;
         }
