@@ -24,6 +24,7 @@ const status = {
   fps: 0, // frames per second over the last ~15 frames
   fpsAverage: 0, // frames per second from the first to the latest frame of this run
   msPerFrame: 0, // wasm time per frame (decode + preprocess + track + fuse + predict)
+  stageMedianMs: null, // median ms per stage and in total over the frames since the last reset
   playing: false,
   done: false,
   frameIndex: -1,
@@ -102,6 +103,7 @@ function syncStatus() {
   status.ate = stats.ate;
   status.fps = Number(stats.fps.toFixed(2));
   status.msPerFrame = Number(stats.msPerFrame.toFixed(2));
+  status.stageMedianMs = stats.stageMedians();
   status.frameIndex = stats.frameIndex;
   status.changedSurfels = stats.changed ?? 0;
 }

@@ -27,6 +27,7 @@ export class Stats {
     this.fps = 0;
     this.msPerFrame = 0;
     this.stageMs = Object.fromEntries(STAGES.map((s) => [s, 0]));
+    this.stageHistory = Object.fromEntries(STAGES.map((s) => [s, []])); // every frame since reset
     this.wallMs = 0;
     this.frameIndex = -1;
     this.frameCount = 0;
@@ -60,6 +61,7 @@ export class Stats {
     }
     for (const s of STAGES) {
       this.stageMs[s] = this.recent.reduce((acc, f) => acc + (Number(f.timings[s]) || 0), 0) / n;
+      this.stageHistory[s].push(Number(r.timings?.[s]) || 0);
     }
     this.wallMs = this.recent.reduce((acc, f) => acc + f.wall, 0) / n;
     this.msPerFrame = this.stageMs.total || this.wallMs;
@@ -71,6 +73,15 @@ export class Stats {
     this.frameIndex = msg.index;
     this.frameCount = msg.frameCount ?? this.frameCount;
     this.render();
+  }
+
+  /** Median ms of each stage over every frame since the last reset. */
+  stageMedians() {
+    const median = (v) => {
+      const sorted = [...v].sort((a, b) => a - b);
+      return sorted.length ? sorted[Math.floor(sorted.length / 2)] : 0;
+    };
+    return Object.fromEntries(STAGES.map((s) => [s, Number(median(this.stageHistory[s]).toFixed(2))]));
   }
 
   /** Paused: the next run's frame rate starts afresh (the last value stays shown). */
