@@ -11,7 +11,7 @@ use crate::fusion::{
     remove_unstable, FusionConfig, FusionStats, Integrator, Prediction, SurfelMap,
 };
 use crate::preprocess::{FramePyramid, PreprocessConfig};
-use crate::track::{track, LostReason, TrackerConfig};
+use crate::track::{track, LostReason, TrackerConfig, TrackerWorkspace};
 use glam::DAffine3;
 use thiserror::Error;
 
@@ -156,6 +156,7 @@ pub struct Pipeline {
     map: SurfelMap,
     prediction: Prediction,
     integrator: Integrator,
+    tracker: TrackerWorkspace,
     trajectory: Vec<(f64, DAffine3)>,
     last_good: Option<DAffine3>,
     frame_index: u32,
@@ -171,6 +172,7 @@ impl Pipeline {
             map: SurfelMap::default(),
             prediction: Prediction::default(),
             integrator: Integrator::default(),
+            tracker: TrackerWorkspace::default(),
             trajectory: Vec::new(),
             last_good: None,
             frame_index: 0,
@@ -253,6 +255,7 @@ impl Pipeline {
                     &self.prediction,
                     &previous,
                     &self.config.tracker,
+                    &mut self.tracker,
                 );
                 match result.lost {
                     None => (Verdict::Tracked, result.world_from_camera, Some(result)),

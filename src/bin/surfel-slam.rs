@@ -6,6 +6,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use surfel_slam::dataset::{ply::write_ply, read_frame, trajectory, Sequence};
 use surfel_slam::eval::{ate, rpe};
+use surfel_slam::track::TrackerMode;
 use surfel_slam::{CameraPreset, Pipeline, SlamConfig, Verdict};
 
 /// Timestamps of matched poses may differ by this much (seconds; frame numbers match exactly).
@@ -54,6 +55,12 @@ struct RunArgs {
     /// Camera preset (tum-fr1, tum-fr2, tum-fr3, icl-nuim, 7-scenes); default from the layout.
     #[arg(long)]
     preset: Option<String>,
+    /// Tracker: icp (geometry), rgb (photometric) or joint (both).
+    #[arg(long)]
+    tracker: Option<String>,
+    /// Joint mode: weight w of the ICP term (A = A_rgb + w^2 A_icp).
+    #[arg(long)]
+    icp_weight: Option<f64>,
     #[command(flatten)]
     overrides: CameraOverrides,
     /// No progress bar.
@@ -105,6 +112,18 @@ fn config_for(sequence: &Sequence, args: &RunArgs) -> Result<SlamConfig> {
         None => sequence.preset,
     };
     let mut config = SlamConfig::from_preset(preset);
+    if let Some(name) = &args.tracker {
+        config.tracker.mode = TrackerMode::from_name(name).with_context(|| {
+            let names: Vec<_> = TrackerMode::ALL.iter().map(|m| m.name()).collect();
+            format!("unknown tracker {name:?}; known: {}", names.join(", "))
+        })?;
+    }
+    if let Some(w) = args.icp_weight {
+        if !(w.is_finite() && w >= 0.0) {
+            bail!("--icp-weight must be finite and >= 0, got {w}");
+        }
+        config.tracker.icp_weight = w;
+    }
     let o = &args.overrides;
     let k = &mut config.intrinsics;
     k.fx = o.fx.unwrap_or(k.fx);
