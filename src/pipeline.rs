@@ -286,6 +286,8 @@ impl Pipeline {
                 .render(map, &pose, &k, fusion_cfg.depth_gate_m, |i| {
                     fusion_cfg.predicts(map, i, index)
                 });
+            self.tracker
+                .remember_frame(&self.pyramid, &pose, &self.config.tracker);
             self.last_good = Some(pose);
         }
         let t4 = now_ms();

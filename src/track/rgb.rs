@@ -64,9 +64,22 @@ const INTENSITY_SCALE: f32 = 1.0 / 255.0;
 /// Reference pixels per parallel task.
 const CHUNK: usize = 2048;
 
+/// Where the photometric reference (grey levels and their 3D points) comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PhotometricReference {
+    /// The model prediction's fused colour (frame-to-model).
+    #[default]
+    Model,
+    /// The last tracked frame's own image and depth at its estimated pose
+    /// (frame-to-frame, like a keyframe that is renewed every frame).
+    LastFrame,
+}
+
 /// Settings of the photometric term.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PhotometricConfig {
+    /// Reference image.
+    pub reference: PhotometricReference,
     /// Smallest reference gradient magnitude per level, finest first, grey
     /// levels (0..255) per pixel of that level.
     pub min_gradient: Vec<f32>,
@@ -80,6 +93,7 @@ pub struct PhotometricConfig {
 impl Default for PhotometricConfig {
     fn default() -> Self {
         Self {
+            reference: PhotometricReference::default(),
             min_gradient: vec![5.0, 3.0, 1.0],
             max_depth_delta_m: 0.07,
             huber: 10.0 / 255.0,
@@ -134,13 +148,43 @@ impl RgbWorkspace {
             .resize_with(pyramid.levels.len(), LevelBuffers::default);
         for (l, (level, buffers)) in pyramid.levels.iter().zip(&mut self.levels).enumerate() {
             gradients_into(level, &mut buffers.image);
-            let threshold = config
-                .min_gradient
-                .get(l)
-                .or(config.min_gradient.last())
-                .copied()
-                .unwrap_or(0.0);
-            select_references(prediction, 1 << l, threshold, &mut buffers.references);
+            if config.reference == PhotometricReference::Model {
+                let threshold = level_threshold(config, l);
+                select_references(prediction, 1 << l, threshold, &mut buffers.references);
+            }
+        }
+    }
+
+    /// With [`PhotometricReference::LastFrame`], keeps the tracked frame's
+    /// pixels (placed in the world by `world_from_camera`) as the next frame's
+    /// reference; otherwise does nothing.
+    pub fn remember_frame(
+        &mut self,
+        pyramid: &FramePyramid,
+        world_from_camera: &glam::DAffine3,
+        config: &PhotometricConfig,
+    ) {
+        if config.reference != PhotometricReference::LastFrame {
+            return;
+        }
+        let world_from_camera = RigidF32::from_affine(world_from_camera);
+        self.levels
+            .resize_with(pyramid.levels.len(), LevelBuffers::default);
+        for (l, (level, buffers)) in pyramid.levels.iter().zip(&mut self.levels).enumerate() {
+            gradients_into(level, &mut buffers.image);
+            let threshold2 = level_threshold(config, l).powi(2);
+            buffers.references.clear();
+            if level.vertices.len() != buffers.image.len() {
+                continue;
+            }
+            for (p, &[i, gx, gy]) in level.vertices.iter().zip(&buffers.image) {
+                if p.z > 0.0 && gx * gx + gy * gy >= threshold2 {
+                    buffers.references.push(ReferencePoint {
+                        point_in_world: world_from_camera.point(*p),
+                        intensity: i,
+                    });
+                }
+            }
         }
     }
 
@@ -215,6 +259,16 @@ impl RgbWorkspace {
                 candidates: a.candidates + b.candidates,
             })
     }
+}
+
+/// The gradient threshold of level `l` (the last one given for coarser levels).
+fn level_threshold(config: &PhotometricConfig, l: usize) -> f32 {
+    config
+        .min_gradient
+        .get(l)
+        .or(config.min_gradient.last())
+        .copied()
+        .unwrap_or(0.0)
 }
 
 /// Bilinear sample of `[grey, d/du, d/dv]` at `px`; the caller keeps `px`
