@@ -54,3 +54,46 @@ fn joint_recovers_a_known_motion() {
     assert!(dt < 1e-3, "translation error {dt} m");
     assert!(dr < 0.05, "rotation error {dr} deg");
 }
+
+/// ATE (m) and lost frames of `mode` on the synthetic room, 60 frames.
+fn synthetic_ate(mode: TrackerMode, noise: NoiseModel) -> (f64, usize) {
+    let mut config = synthetic_config(small_intrinsics());
+    config.tracker.mode = mode;
+    let (slam, reports, truth) = run_synthetic_with(config, 60, noise);
+    assert!(slam.map().all_finite());
+    let a = ate(slam.trajectory(), &truth, 0.01).expect("ate");
+    (a.rmse_m, lost_count(&reports))
+}
+
+fn joint_is_never_worse(noise: NoiseModel, label: &str) {
+    let [icp, rgb, joint] = [TrackerMode::Icp, TrackerMode::Rgb, TrackerMode::Joint]
+        .map(|mode| synthetic_ate(mode, noise));
+    eprintln!(
+        "{label}: ATE icp {:.3} mm ({} lost), rgb {:.3} mm ({} lost), joint {:.3} mm ({} lost)",
+        icp.0 * 1e3,
+        icp.1,
+        rgb.0 * 1e3,
+        rgb.1,
+        joint.0 * 1e3,
+        joint.1
+    );
+    assert_eq!(joint.1, 0, "joint lost frames");
+    let better = icp.0.min(rgb.0);
+    // 5 % or 0.05 mm of slack: "not worse" up to run-to-run float noise.
+    assert!(
+        joint.0 <= better * 1.05 + 5e-5,
+        "joint {} m vs better single term {} m",
+        joint.0,
+        better
+    );
+}
+
+#[test]
+fn joint_is_never_worse_than_the_better_term_noise_free() {
+    joint_is_never_worse(NoiseModel::none(), "noise-free");
+}
+
+#[test]
+fn joint_is_never_worse_than_the_better_term_with_kinect_noise() {
+    joint_is_never_worse(NoiseModel::kinect(), "kinect noise");
+}

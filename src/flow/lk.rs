@@ -40,7 +40,8 @@ pub fn track_point(
             }
         }
         let det = gxx * gyy - gxy * gxy;
-        if !(det > MIN_DETERMINANT * area * area) {
+        // Also rejects NaN (the comparison is false).
+        if det.is_nan() || det <= MIN_DETERMINANT * area * area {
             return None;
         }
         let mut d = Vec2::ZERO;

@@ -62,8 +62,10 @@ impl TrackerMode {
 pub struct TrackerConfig {
     /// Which cost to minimise.
     pub mode: TrackerMode,
-    /// Joint weight `w` of the ICP term (`A = A_rgb + w^2 A_icp`): one metre
-    /// of point-to-plane residual weighs as much as `w` times the full grey range.
+    /// Joint weight `w` of the ICP term (`A = A_rgb + w^2 A_icp`,
+    /// `b = b_rgb + w^2 b_icp`), applied after each term is divided by its
+    /// own mean squared residual at the level's first step: `w = 1` weighs
+    /// the two equally per unit of their own noise.
     pub icp_weight: f64,
     /// Photometric term settings.
     pub photometric: PhotometricConfig,
@@ -97,7 +99,7 @@ impl Default for TrackerConfig {
     fn default() -> Self {
         Self {
             mode: TrackerMode::default(),
-            icp_weight: 10.0,
+            icp_weight: 1.0,
             photometric: PhotometricConfig::default(),
             lm_damping: false,
             iterations: vec![10, 5, 4],
@@ -205,6 +207,7 @@ fn evaluate(
     level: usize,
     camera_from_world: &DAffine3,
     config: &TrackerConfig,
+    scales: &mut Option<(f64, f64)>,
 ) -> Evaluation {
     let t = RigidF32::from_affine(camera_from_world);
     let target = &pyramid.levels[level];
@@ -235,11 +238,23 @@ fn evaluate(
         }
         TrackerMode::Joint => {
             let (geometric, photometric) = rayon::join(icp, rgb);
-            let w = config.icp_weight;
-            let mut system = photometric;
-            system.add_scaled(&geometric, w * w, w * w);
+            // Each term divided by its own mean squared residual (its
+            // variance estimate, this iteration), so that w is a relative
+            // weight of two unit-variance terms: the noisier term (real
+            // depth noise, inconsistent fused colour) gives way by itself.
+            // The scales are fixed at a level's first evaluation so that
+            // the level minimises one cost (and LM can compare costs).
+            let (rgb_scale, icp_scale) = *scales.get_or_insert_with(|| {
+                (
+                    1.0 / mean(&photometric).max(1e-12),
+                    config.icp_weight.powi(2) / mean(&geometric).max(1e-12),
+                )
+            });
+            let mut system = se3::NormalEquations::default();
+            system.add_scaled(&photometric, rgb_scale, rgb_scale);
+            system.add_scaled(&geometric, icp_scale, icp_scale);
             Evaluation {
-                mean_cost: mean(&photometric) + w * w * mean(&geometric),
+                mean_cost: mean(&photometric) * rgb_scale + mean(&geometric) * icp_scale,
                 system,
                 photometric,
             }
@@ -273,6 +288,7 @@ pub fn track(
         // from `best` with ten times the damping.
         let mut best: Option<(DAffine3, Evaluation)> = None;
         let mut damping = 0.0;
+        let mut scales = None;
         for _ in 0..config.iterations[level] {
             let current = evaluate(
                 pyramid,
@@ -281,6 +297,7 @@ pub fn track(
                 level,
                 &camera_from_world,
                 config,
+                &mut scales,
             );
             let (pose, eval) = match best {
                 Some((pose, eval)) if damped && current.mean_cost > eval.mean_cost => {
@@ -320,6 +337,7 @@ pub fn track(
                     level,
                     &camera_from_world,
                     config,
+                    &mut scales,
                 );
                 if last.mean_cost > eval.mean_cost {
                     camera_from_world = pose;
