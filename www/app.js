@@ -168,6 +168,7 @@ function currentIntrinsics() {
     cx: num(ui.cx, base.cx),
     cy: num(ui.cy, base.cy),
     depthScale: num(ui.depthScale, base.depthScale),
+    tracker: $('tracker').value,
   };
 }
 
@@ -241,7 +242,7 @@ const handlers = {
       renderer.setCameraPose(msg.result.pose, intr);
       anchorGroundTruth(msg.timestamp, msg.result.pose);
     }
-    views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000);
+    views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow);
     if (msg.done) status.done = true;
     syncStatus();
     // How far the display trails the worker (main thread busy drawing or uploading).
@@ -345,6 +346,9 @@ $('apply-intrinsics').addEventListener('click', () => {
   }
   send({ type: 'config', config: c });
 });
+
+$('tracker').addEventListener('change', () => send({ type: 'config', config: currentIntrinsics() }));
+$('show-flow').addEventListener('change', (e) => send({ type: 'flow', enabled: e.target.checked }));
 
 $('colour-mode').addEventListener('change', (e) => renderer?.setMode(e.target.value));
 $('splat-size').addEventListener('input', (e) => {

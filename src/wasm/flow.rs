@@ -14,6 +14,8 @@ pub struct OpticalFlow {
     flow: Flow,
     first: Vec<f32>,
     second: Vec<f32>,
+    /// Size of the image in `second` kept by `pushPng` (0 x 0 = none yet).
+    kept: (usize, usize),
 }
 
 /// Grey levels 0..255 of an RGBA8 (or RGB8) image into `out`.
@@ -51,7 +53,38 @@ impl OpticalFlow {
             flow,
             first: Vec::new(),
             second: Vec::new(),
+            kept: (0, 0),
         })
+    }
+
+    /// Decodes a colour image (PNG or JPEG) and tracks corners of the
+    /// previously pushed image into it: `[fromX, fromY, toX, toY, ...]`,
+    /// empty for the first image or after a size change. Throws on bad bytes.
+    #[wasm_bindgen(js_name = pushPng)]
+    pub fn push_png(&mut self, colour: &[u8]) -> Result<Float32Array, JsError> {
+        let (w, h, rgb) =
+            crate::frame::decode_colour(colour).map_err(|e| JsError::new(&e.to_string()))?;
+        std::mem::swap(&mut self.first, &mut self.second);
+        grey_into(&rgb, w * h, &mut self.second)?;
+        let previous = std::mem::replace(&mut self.kept, (w, h));
+        if previous != (w, h) {
+            return Ok(Float32Array::new_with_length(0));
+        }
+        let tracks = self
+            .flow
+            .track(&self.first, &self.second, w, h)
+            .map_err(|e| JsError::new(&e.to_string()))?;
+        Ok(flatten(tracks))
+    }
+
+    /// Width and height of the last image given to `pushPng`, pixels (0 before).
+    #[wasm_bindgen(getter, js_name = imageSize, unchecked_return_type = "[number, number]")]
+    #[must_use]
+    pub fn image_size(&self) -> js_sys::Array {
+        js_sys::Array::of2(
+            &JsValue::from_f64(self.kept.0 as f64),
+            &JsValue::from_f64(self.kept.1 as f64),
+        )
     }
 
     /// Tracks corners of `first` into `second` (RGBA8 or RGB8, `width x
@@ -74,10 +107,15 @@ impl OpticalFlow {
             .flow
             .track(&self.first, &self.second, w, h)
             .map_err(|e| JsError::new(&e.to_string()))?;
-        let flat: Vec<f32> = tracks
-            .iter()
-            .flat_map(|t| [t.from.x, t.from.y, t.to.x, t.to.y])
-            .collect();
-        Ok(Float32Array::from(flat.as_slice()))
+        Ok(flatten(tracks))
     }
+}
+
+/// `[fromX, fromY, toX, toY, ...]`.
+fn flatten(tracks: &[crate::flow::FlowTrack]) -> Float32Array {
+    let flat: Vec<f32> = tracks
+        .iter()
+        .flat_map(|t| [t.from.x, t.from.y, t.to.x, t.to.y])
+        .collect();
+    Float32Array::from(flat.as_slice())
 }
