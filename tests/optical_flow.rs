@@ -51,8 +51,14 @@ fn lucas_kanade_recovers_a_sub_pixel_shift() {
     let shift = Vec2::new(4.37, -2.61);
     let errors = end_point_errors(|p| p + shift, |q| q - shift);
     let (mean, p95) = summary(&errors);
-    eprintln!("shift: {} tracks, mean EPE {mean:.4} px, 95th {p95:.4} px", errors.len());
-    assert!(mean <= 0.1 && p95 <= 0.1, "mean {mean} px, 95th percentile {p95} px");
+    eprintln!(
+        "shift: {} tracks, mean EPE {mean:.4} px, 95th {p95:.4} px",
+        errors.len()
+    );
+    assert!(
+        mean <= 0.1 && p95 <= 0.1,
+        "mean {mean} px, 95th percentile {p95} px"
+    );
 }
 
 #[test]
@@ -68,7 +74,10 @@ fn lucas_kanade_recovers_a_small_rotation_and_scale() {
         |q| a_inv * (q - centre - t) + centre,
     );
     let (mean, p95) = summary(&errors);
-    eprintln!("warp: {} tracks, mean EPE {mean:.4} px, 95th {p95:.4} px", errors.len());
+    eprintln!(
+        "warp: {} tracks, mean EPE {mean:.4} px, 95th {p95:.4} px",
+        errors.len()
+    );
     assert!(mean <= 0.1, "mean {mean} px, 95th percentile {p95} px");
 }
 

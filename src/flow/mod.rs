@@ -208,13 +208,11 @@ impl OpticalFlow {
                 *out = lk::track_point(first, second, from, config).and_then(|to| {
                     let back = lk::track_point(second, first, to, config)?;
                     let forward_backward_px = back.distance(from);
-                    (forward_backward_px <= config.max_forward_backward_px).then_some(
-                        FlowTrack {
-                            from,
-                            to,
-                            forward_backward_px,
-                        },
-                    )
+                    (forward_backward_px <= config.max_forward_backward_px).then_some(FlowTrack {
+                        from,
+                        to,
+                        forward_backward_px,
+                    })
                 });
             });
         self.tracks.clear();

@@ -367,7 +367,9 @@ pub fn slam_config_from_js(config: &JsValue) -> Result<SlamConfig, String> {
     }
     if let Some(v) = f.number("icpWeight")? {
         if !(v.is_finite() && v >= 0.0) {
-            return Err(format!("config.icpWeight must be a finite number >= 0, got {v}"));
+            return Err(format!(
+                "config.icpWeight must be a finite number >= 0, got {v}"
+            ));
         }
         cfg.tracker.icp_weight = v;
     }

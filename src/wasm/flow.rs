@@ -31,9 +31,11 @@ fn grey_into(pixels: &[u8], count: usize, out: &mut Vec<f32>) -> Result<(), JsEr
         )));
     };
     out.clear();
-    out.extend(pixels.chunks_exact(channels).map(|c| {
-        0.299 * f32::from(c[0]) + 0.587 * f32::from(c[1]) + 0.114 * f32::from(c[2])
-    }));
+    out.extend(
+        pixels
+            .chunks_exact(channels)
+            .map(|c| 0.299 * f32::from(c[0]) + 0.587 * f32::from(c[1]) + 0.114 * f32::from(c[2])),
+    );
     Ok(())
 }
 
