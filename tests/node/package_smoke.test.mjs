@@ -84,7 +84,7 @@ test('optical flow follows a shifted texture', { skip: skipNoPkg }, async () => 
     for (let v = 0; v < h; v++) {
       for (let u = 0; u < w; u++) {
         const [x, y] = [u - sx, v - sy];
-        const g = 128 + 50 * Math.sin(0.3 * x) * Math.cos(0.23 * y) + 40 * Math.exp(-((x % 20) - 10) ** 2 / 8 - ((y % 20) - 10) ** 2 / 8);
+        const g = 128 + 50 * Math.sin(0.3 * x) * Math.cos(0.23 * y) + 40 * Math.exp(-(((x % 20) - 10) ** 2) / 8 - (((y % 20) - 10) ** 2) / 8);
         rgba.fill(Math.max(0, Math.min(255, Math.round(g))), 4 * (v * w + u), 4 * (v * w + u) + 3);
         rgba[4 * (v * w + u) + 3] = 255;
       }
