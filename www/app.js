@@ -20,6 +20,7 @@ const status = {
   module: null,
   error: null,
   ate: null,
+  flowTracks: 0, // Lucas-Kanade tracks drawn on the last colour view (0 = overlay off)
   fps: 0, // frames per second over the last ~15 frames
   fpsAverage: 0, // frames per second from the first to the latest frame of this run
   msPerFrame: 0, // wasm time per frame (decode + preprocess + track + fuse + predict)
@@ -233,6 +234,7 @@ const handlers = {
 
   frame(msg) {
     const t0 = performance.now();
+    status.flowTracks = msg.flow?.tracks ? msg.flow.tracks.length / 4 : 0;
     stats.onFrame(msg);
     countRunFrame(msg);
     if (renderer) {
