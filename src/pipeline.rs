@@ -12,7 +12,7 @@ use crate::fusion::{
 };
 use crate::preprocess::{half_resolution_into, FramePyramid, PreprocessConfig};
 use crate::se3;
-use crate::track::{track, LostReason, TrackerConfig};
+use crate::track::{track, LostReason, TrackerConfig, TrackerWorkspace};
 use glam::DAffine3;
 use thiserror::Error;
 
@@ -241,6 +241,7 @@ pub struct Pipeline {
     map: SurfelMap,
     prediction: Prediction,
     integrator: Integrator,
+    tracker: TrackerWorkspace,
     trajectory: Vec<(f64, DAffine3)>,
     last_good: Option<DAffine3>,
     frame_index: u32,
@@ -260,6 +261,7 @@ impl Pipeline {
             map: SurfelMap::default(),
             prediction: Prediction::default(),
             integrator: Integrator::default(),
+            tracker: TrackerWorkspace::default(),
             trajectory: Vec::new(),
             last_good: None,
             frame_index: 0,
@@ -337,11 +339,12 @@ impl Pipeline {
     /// there, accepts it and the motion since `previous` is plausible for the
     /// number of frames lost.
     fn track_or_recover(
-        &self,
+        &mut self,
         previous: &DAffine3,
     ) -> (Verdict, DAffine3, Option<crate::track::TrackResult>) {
         let normal = &self.config.tracker;
-        let first = track(&self.pyramid, &self.prediction, previous, normal);
+        let workspace = &mut self.tracker;
+        let first = track(&self.pyramid, &self.prediction, previous, normal, workspace);
         let was_lost = self.counts.lost_streak > 0;
         let pinned = |r: &crate::track::TrackResult| {
             !was_lost || r.conditioning >= RECOVERY_MIN_CONDITIONING
@@ -362,7 +365,13 @@ impl Pipeline {
         if first.lost == Some(LostReason::TooFewInliers) && first.inliers < normal.min_inliers / 4 {
             return lost(first);
         }
-        let wide = track(&self.pyramid, &self.prediction, previous, &self.recovery);
+        let wide = track(
+            &self.pyramid,
+            &self.prediction,
+            previous,
+            &self.recovery,
+            workspace,
+        );
         if !wide.world_from_camera.is_finite() {
             return lost(first);
         }
@@ -371,6 +380,7 @@ impl Pipeline {
             &self.prediction,
             &wide.world_from_camera,
             normal,
+            workspace,
         );
         // The camera may have moved for every frame lost since `previous`.
         let frames = f64::from(self.counts.lost_streak.min(10) + 1);
@@ -459,6 +469,8 @@ impl Pipeline {
                 .render(map, &pose, &k, (fusion_cfg.depth_gate_m, far_m), |i| {
                     fusion_cfg.predicts(map, i, fused)
                 });
+            self.tracker
+                .remember_frame(&self.pyramid, &pose, &self.config.tracker);
             self.last_good = Some(pose);
         }
         let t4 = now_ms();

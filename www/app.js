@@ -21,6 +21,7 @@ const status = {
   module: null,
   error: null,
   ate: null,
+  flowTracks: 0, // Lucas-Kanade tracks drawn on the last colour view (0 = overlay off)
   fps: 0, // frames per second over the last ~15 frames
   fpsAverage: 0, // frames per second from the first to the latest frame of this run
   msPerFrame: 0, // wasm time per frame (decode + preprocess + track + fuse + predict)
@@ -172,6 +173,7 @@ function currentIntrinsics() {
     cx: num(ui.cx, base.cx),
     cy: num(ui.cy, base.cy),
     depthScale: num(ui.depthScale, base.depthScale),
+    tracker: $('tracker').value,
   };
 }
 
@@ -236,6 +238,7 @@ const handlers = {
 
   frame(msg) {
     const t0 = performance.now();
+    status.flowTracks = msg.flow?.tracks ? msg.flow.tracks.length / 4 : 0;
     stats.onFrame(msg);
     countRunFrame(msg);
     if (renderer) {
@@ -245,7 +248,7 @@ const handlers = {
       renderer.setCameraPose(msg.result.pose, intr);
       anchorGroundTruth(msg.timestamp, msg.result.pose);
     }
-    views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000);
+    views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow);
     if (msg.done) status.done = true;
     syncStatus();
     // How far the display trails the worker (main thread busy drawing or uploading).
@@ -349,6 +352,9 @@ $('apply-intrinsics').addEventListener('click', () => {
   }
   send({ type: 'config', config: c });
 });
+
+$('tracker').addEventListener('change', () => send({ type: 'config', config: currentIntrinsics() }));
+$('show-flow').addEventListener('change', (e) => send({ type: 'flow', enabled: e.target.checked }));
 
 $('colour-mode').addEventListener('change', (e) => renderer?.setMode(e.target.value));
 $('splat-size').addEventListener('input', (e) => {

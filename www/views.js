@@ -53,19 +53,40 @@ export class InputViews {
   }
 
   /** Shows one frame's input (PNG bytes). Drops frames while a decode is in flight. */
-  show(colourBytes, depthBytes, depthScale = 5000) {
-    this.pending = { colourBytes, depthBytes, depthScale: depthScale || 5000 };
+  show(colourBytes, depthBytes, depthScale = 5000, flow = null) {
+    this.pending = { colourBytes, depthBytes, depthScale: depthScale || 5000, flow };
     if (!this.busy) this.drain();
   }
 
   async drain() {
     this.busy = true;
     while (this.pending) {
-      const { colourBytes, depthBytes, depthScale } = this.pending;
+      const { colourBytes, depthBytes, depthScale, flow } = this.pending;
       this.pending = null;
       await Promise.all([this.drawColour(colourBytes), this.drawDepth(depthBytes, depthScale)]);
+      if (flow) this.drawFlow(flow);
     }
     this.busy = false;
+  }
+
+  // Lucas-Kanade tracks from the previous frame: a line per track, a dot at its end.
+  drawFlow({ tracks, width, height }) {
+    if (!tracks?.length || !width || !height) return;
+    const ctx = this.colourCtx;
+    const sx = VIEW_W / width;
+    const sy = VIEW_H / height;
+    ctx.save();
+    ctx.strokeStyle = '#3f3';
+    ctx.fillStyle = '#ff3';
+    ctx.lineWidth = 1;
+    ctx.beginPath();
+    for (let i = 0; i + 3 < tracks.length; i += 4) {
+      ctx.moveTo(tracks[i] * sx, tracks[i + 1] * sy);
+      ctx.lineTo(tracks[i + 2] * sx, tracks[i + 3] * sy);
+    }
+    ctx.stroke();
+    for (let i = 0; i + 3 < tracks.length; i += 4) ctx.fillRect(tracks[i + 2] * sx - 1, tracks[i + 3] * sy - 1, 2, 2);
+    ctx.restore();
   }
 
   async drawColour(bytes) {

@@ -86,6 +86,23 @@ function toPlain(v) {
 
 const presetName = (p) => (typeof p === 'string' ? p : p?.name ?? null);
 
+// Lucas-Kanade tracks between consecutive colour images, for the live
+// view's overlay; only computed while the page asks for them.
+let flow = null;
+let flowEnabled = false;
+
+function flowTracks(colour) {
+  if (!flowEnabled) return null;
+  try {
+    flow ??= new wasm.OpticalFlow(300);
+    const tracks = flow.pushPng(colour);
+    const [width, height] = flow.imageSize;
+    return { tracks, width, height };
+  } catch {
+    return null; // an overlay is not worth an error message
+  }
+}
+
 function createSlam(newConfig) {
   const fresh = new wasm.Slam(newConfig); // throws on a bad config: keep the old one
   if (slam) slam.free();
@@ -225,6 +242,7 @@ async function processNext() {
     );
     return;
   }
+  const flowOverlay = flowTracks(colour);
   const tPush = performance.now();
   framesOk++;
 
@@ -292,6 +310,7 @@ async function processNext() {
         doneAt: performance.now() + performance.timeOrigin, // fps is measured where the work happens
       },
       input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null },
+      flow: flowOverlay,
       done: last,
     },
     [
@@ -405,6 +424,13 @@ self.onmessage = async (event) => {
         reportState();
         if (playing) pump();
       });
+      break;
+    case 'flow':
+      flowEnabled = Boolean(msg.enabled);
+      if (!flowEnabled && flow) {
+        flow.free();
+        flow = null;
+      }
       break;
     case 'exportPly':
       serial(() => {

@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use surfel_slam::dataset::{ply::write_ply, read_frame, trajectory, FrameEntry, Sequence};
 use surfel_slam::eval::{ate, rpe};
+use surfel_slam::track::TrackerMode;
 use surfel_slam::{CameraPreset, Pipeline, SlamConfig, Verdict};
 
 /// Timestamps of matched poses may differ by this much (seconds; frame numbers match exactly).
@@ -87,6 +88,12 @@ pub(crate) struct TrackingArgs {
     /// are evicted and further new surfels skipped (merges continue).
     #[arg(long)]
     max_surfels: Option<usize>,
+    /// Tracker: icp (geometry), rgb (photometric) or joint (both).
+    #[arg(long)]
+    tracker: Option<String>,
+    /// Joint mode: weight w of the ICP term (A = A_rgb + w^2 A_icp).
+    #[arg(long)]
+    icp_weight: Option<f64>,
 }
 
 impl TrackingArgs {
@@ -94,6 +101,18 @@ impl TrackingArgs {
         config.half_resolution = self.half;
         if let Some(n) = self.max_surfels {
             config.fusion.max_surfels = n;
+        }
+        if let Some(name) = &self.tracker {
+            config.tracker.mode = TrackerMode::from_name(name).with_context(|| {
+                let names: Vec<_> = TrackerMode::ALL.iter().map(|m| m.name()).collect();
+                format!("unknown tracker {name:?}; known: {}", names.join(", "))
+            })?;
+        }
+        if let Some(w) = self.icp_weight {
+            if !(w.is_finite() && w >= 0.0) {
+                bail!("--icp-weight must be finite and >= 0, got {w}");
+            }
+            config.tracker.icp_weight = w;
         }
         Ok(())
     }

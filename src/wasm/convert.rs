@@ -12,6 +12,7 @@ use crate::camera::{CameraPreset, Intrinsics};
 use crate::dataset::DatasetKind;
 use crate::frame::DepthSettings;
 use crate::pipeline::{FrameReport, SlamConfig, Verdict};
+use crate::track::TrackerMode;
 
 #[wasm_bindgen(typescript_custom_section)]
 const TS_TYPES: &'static str = r#"
@@ -36,6 +37,10 @@ export interface SlamConfig {
   stableConfidence?: number;
   /** Surfel budget: when reached, stale unstable surfels are evicted, then new surfels skipped. */
   maxSurfels?: number;
+  /** Tracker: geometric ICP, photometric, or both in one system. */
+  tracker?: 'icp' | 'rgb' | 'joint';
+  /** Joint mode: relative weight of the ICP term (each term normalised by its own residual variance). */
+  icpWeight?: number;
 }
 
 export interface Preset {
@@ -134,6 +139,8 @@ pub fn strings_from_js(value: &JsValue, what: &str) -> Result<Vec<String>, Strin
 /// Config keys understood by [`slam_config_from_js`], for error messages.
 const CONFIG_KEYS: &[&str] = &[
     "preset",
+    "tracker",
+    "icpWeight",
     "fx",
     "fy",
     "cx",
@@ -366,6 +373,19 @@ pub fn slam_config_from_js(config: &JsValue) -> Result<SlamConfig, String> {
     }
     if let Some(v) = f.number("maxResidual")? {
         cfg.tracker.max_residual_m = v;
+    }
+    if let Some(name) = f.string("tracker")? {
+        cfg.tracker.mode = TrackerMode::from_name(&name).ok_or_else(|| {
+            format!("config.tracker must be 'icp', 'rgb' or 'joint', got {name:?}")
+        })?;
+    }
+    if let Some(v) = f.number("icpWeight")? {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(format!(
+                "config.icpWeight must be a finite number >= 0, got {v}"
+            ));
+        }
+        cfg.tracker.icp_weight = v;
     }
     if let Some(v) = f.f32("stableConfidence")? {
         cfg.fusion.stable_confidence = v;

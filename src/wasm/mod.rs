@@ -6,6 +6,7 @@
 //!
 //! - [`slam`]: the `Slam` class (frames in, reports and zero-copy surfel views out).
 //! - [`dataset`]: `detectLayout`, `parseSequence`, `ateTum` (the CLI's parsers).
+//! - [`flow`]: the `OpticalFlow` class (Lucas-Kanade tracks for the page's overlay).
 //! - [`convert`]: JS object <-> config / report conversions, with errors that
 //!   name the offending field.
 //!
@@ -15,11 +16,13 @@
 
 pub mod convert;
 pub mod dataset;
+pub mod flow;
 pub mod slam;
 
 use wasm_bindgen::prelude::*;
 
 pub use dataset::{ate_tum, detect_layout, parse_sequence};
+pub use flow::OpticalFlow;
 pub use slam::Slam;
 
 /// Threaded build only: `await initThreadPool(n)` starts `n` web workers

@@ -32,6 +32,9 @@ test('bundled sample plays with the threaded module and draws the map', { timeou
   });
   try {
     const { page, requests, consoleErrors } = await openPage(env, '/');
+    // The new options: the default tracker is shown, and the flow overlay draws tracks.
+    assert.equal(await page.inputValue('#tracker'), 'joint');
+    await page.check('#show-flow');
     const started = Date.now();
     const status = await waitForStatus(page, (s) => s.done || s.framesProcessed >= 44, {
       timeoutMs: 240_000,
@@ -64,6 +67,7 @@ test('bundled sample plays with the threaded module and draws the map', { timeou
     assert.ok(status.framesProcessed >= MIN_FRAMES, `frames processed ${status.framesProcessed} >= ${MIN_FRAMES}`);
     assert.ok(status.framesLost <= MAX_LOST, `tracking held: ${status.framesLost} lost frames`);
     assert.ok(status.surfels > 10_000, `surfels ${status.surfels} > 10000`);
+    assert.ok(status.flowTracks > 20, `flow overlay drew ${status.flowTracks} tracks`);
     assert.ok(Number.isFinite(status.ate) && status.ate < 0.1, `ATE so far ${status.ate} m < 0.1 m`);
     assert.ok(pixels.variance > 100, `canvas is not blank (luminance variance ${pixels.variance.toFixed(1)})`);
     assert.ok(pixels.nonBackground > 0.05, `canvas shows the map (${(pixels.nonBackground * 100).toFixed(1)} % non-background)`);

@@ -46,9 +46,18 @@ pub fn run_synthetic(
     frames: usize,
     noise: NoiseModel,
 ) -> (Pipeline, Vec<FrameReport>, Vec<(f64, DAffine3)>) {
+    run_synthetic_with(synthetic_config(k), frames, noise)
+}
+
+/// [`run_synthetic`] with a caller-adjusted config (from [`synthetic_config`]).
+pub fn run_synthetic_with(
+    config: SlamConfig,
+    frames: usize,
+    noise: NoiseModel,
+) -> (Pipeline, Vec<FrameReport>, Vec<(f64, DAffine3)>) {
+    let k = config.intrinsics;
     let scene = Scene::room();
     let poses = synthetic::trajectory(frames);
-    let config = synthetic_config(k);
     let mut slam = Pipeline::new(config.clone()).expect("valid config");
     let origin_inv = poses[0].inverse();
     let mut reports = Vec::new();

@@ -72,6 +72,36 @@ test('module loads from bytes; presets and threadCount', { skip: skipNoPkg }, as
   assert.throws(() => new m.Slam({ preset: 'nope' }), /unknown preset "nope"/);
   assert.throws(() => new m.Slam({ preset: 'tum-fr3', depthScale: 0 }), /depth scale/);
   assert.throws(() => new m.Slam({ presett: 'tum-fr3' }), /unknown config field "presett"/);
+  assert.throws(() => new m.Slam({ preset: 'tum-fr3', tracker: 'orb' }), /config.tracker must be/);
+  for (const tracker of ['icp', 'rgb', 'joint']) new m.Slam({ preset: 'tum-fr3', tracker, icpWeight: 2 }).free();
+});
+
+test('optical flow follows a shifted texture', { skip: skipNoPkg }, async () => {
+  const m = await loadPackage();
+  const [w, h, dx, dy] = [160, 120, 2.5, -1.25];
+  const image = (sx, sy) => {
+    const rgba = new Uint8Array(4 * w * h);
+    for (let v = 0; v < h; v++) {
+      for (let u = 0; u < w; u++) {
+        const [x, y] = [u - sx, v - sy];
+        const g = 128 + 50 * Math.sin(0.3 * x) * Math.cos(0.23 * y) + 40 * Math.exp(-(((x % 20) - 10) ** 2) / 8 - (((y % 20) - 10) ** 2) / 8);
+        rgba.fill(Math.max(0, Math.min(255, Math.round(g))), 4 * (v * w + u), 4 * (v * w + u) + 3);
+        rgba[4 * (v * w + u) + 3] = 255;
+      }
+    }
+    return rgba;
+  };
+  const flow = new m.OpticalFlow(200);
+  try {
+    const t = flow.track(w, h, image(0, 0), image(dx, dy));
+    assert.ok(t.length >= 4 * 20, `${t.length / 4} tracks`);
+    let sum = 0;
+    for (let i = 0; i < t.length; i += 4) sum += Math.hypot(t[i + 2] - t[i] - dx, t[i + 3] - t[i + 1] - dy);
+    assert.ok(sum / (t.length / 4) < 0.3, `mean end-point error ${sum / (t.length / 4)} px`);
+    assert.throws(() => flow.track(w, h, new Uint8Array(7), image(0, 0)), /RGBA8 or RGB8/);
+  } finally {
+    flow.free();
+  }
 });
 
 test(`${FRAMES} ICL-NUIM frames track; views; bad bytes throw and the pipeline continues`, { skip: skipNoData }, async () => {
