@@ -13,6 +13,7 @@ use surfel_slam::fusion::{Integrator, Prediction};
 use surfel_slam::preprocess::{normals_into, FramePyramid};
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
 use surfel_slam::track::icp::icp_step;
+use surfel_slam::track::rgb::RgbWorkspace;
 use surfel_slam::{CameraPreset, Pipeline, RgbdFrame, SlamConfig};
 
 /// Frames fused before the map-sized benchmarks.
@@ -133,6 +134,17 @@ fn stages(c: &mut Criterion) {
     for (level, target) in pyramid.levels.iter().enumerate() {
         c.bench_function(&format!("icp iteration level {level}"), |b| {
             b.iter(|| icp_step(&prediction, 1 << level, target, &camera_from_world, &gates));
+        });
+    }
+
+    let photometric = f.config.tracker.photometric.clone();
+    let mut rgb = RgbWorkspace::default();
+    c.bench_function("photometric prepare (gradients, reference pixels)", |b| {
+        b.iter(|| rgb.prepare(&pyramid, &prediction, &photometric));
+    });
+    for (level, target) in pyramid.levels.iter().enumerate() {
+        c.bench_function(&format!("photometric iteration level {level}"), |b| {
+            b.iter(|| rgb.step(level, target, &camera_from_world, &photometric));
         });
     }
 

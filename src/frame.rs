@@ -5,7 +5,7 @@
 //! means "no measurement". After decoding, depth is in metres with 0 = invalid;
 //! values outside the configured range become 0. Never NaN.
 
-use image::{DynamicImage, ImageFormat};
+use image::{ColorType, ImageDecoder, ImageFormat};
 use thiserror::Error;
 
 /// Which image of a frame an error is about.
@@ -218,39 +218,127 @@ pub fn image_dimensions(
     Ok((w, h))
 }
 
+/// Reusable decoder output buffers, so that decoding a stream of frames does
+/// not allocate image-sized buffers per frame.
+#[derive(Debug, Default)]
+pub struct DecodeScratch {
+    colour: Vec<u8>,
+    depth: Vec<u8>,
+}
+
+/// Decodes an image's pixels as stored (its own colour type) into `out`.
+fn decode_pixels(
+    bytes: &[u8],
+    channel: Channel,
+    png_only: bool,
+    out: &mut Vec<u8>,
+) -> Result<(usize, usize, ColorType), FrameError> {
+    let decode_error = |message: String| FrameError::Decode { channel, message };
+    let (w, h) = image_dimensions(bytes, channel, png_only)?;
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes));
+    if png_only {
+        reader.set_format(ImageFormat::Png);
+    } else {
+        reader = reader
+            .with_guessed_format()
+            .map_err(|e| decode_error(e.to_string()))?;
+    }
+    let decoder = reader
+        .into_decoder()
+        .map_err(|e| decode_error(e.to_string()))?;
+    let colour_type = decoder.color_type();
+    let n = usize::try_from(decoder.total_bytes()).map_err(|e| decode_error(e.to_string()))?;
+    out.resize(n, 0);
+    decoder
+        .read_image(out)
+        .map_err(|e| decode_error(e.to_string()))?;
+    Ok((w, h, colour_type))
+}
+
+/// Decodes a colour image (PNG or JPEG bytes) into `rgb` as RGB8, reusing
+/// both buffers; returns (width, height).
+pub fn decode_colour_into(
+    bytes: &[u8],
+    rgb: &mut Vec<u8>,
+    scratch: &mut Vec<u8>,
+) -> Result<(usize, usize), FrameError> {
+    let (w, h, colour_type) = decode_pixels(bytes, Channel::Colour, false, scratch)?;
+    let n = w * h;
+    match colour_type {
+        // The decoded buffer is the answer: trade buffers instead of copying.
+        ColorType::Rgb8 => std::mem::swap(rgb, scratch),
+        ColorType::Rgba8 => {
+            rgb.clear();
+            rgb.extend(scratch.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]));
+        }
+        ColorType::L8 => {
+            rgb.clear();
+            rgb.extend(scratch.iter().flat_map(|&g| [g, g, g]));
+        }
+        // Rare formats (16-bit, float, grey with alpha): convert through `image`.
+        _ => {
+            let img = image::load_from_memory(bytes).map_err(|e| FrameError::Decode {
+                channel: Channel::Colour,
+                message: e.to_string(),
+            })?;
+            *rgb = img.to_rgb8().into_raw();
+        }
+    }
+    if rgb.len() != 3 * n {
+        return Err(FrameError::BufferLength {
+            channel: Channel::Colour,
+            found: rgb.len(),
+            expected: 3 * n,
+        });
+    }
+    Ok((w, h))
+}
+
+/// Decodes a 16-bit single-channel depth PNG into `depth_m` (metres per
+/// `settings`, 0 = invalid), reusing both buffers; returns (width, height).
+pub fn decode_depth_into(
+    bytes: &[u8],
+    settings: &DepthSettings,
+    depth_m: &mut Vec<f32>,
+    scratch: &mut Vec<u8>,
+) -> Result<(usize, usize), FrameError> {
+    let (w, h, colour_type) = decode_pixels(bytes, Channel::Depth, true, scratch)?;
+    if colour_type != ColorType::L16 {
+        return Err(FrameError::DepthNot16Bit {
+            found: format!("{colour_type:?}"),
+        });
+    }
+    depth_m.clear();
+    // The decoder writes 16-bit samples in native byte order.
+    depth_m.extend(
+        scratch
+            .chunks_exact(2)
+            .map(|b| settings.to_metres(u16::from_ne_bytes([b[0], b[1]]))),
+    );
+    Ok((w, h))
+}
+
 /// Decodes a colour image (PNG or JPEG bytes) to RGB8; returns (width, height, rgb).
 pub fn decode_colour(bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), FrameError> {
-    image_dimensions(bytes, Channel::Colour, false)?;
-    let img = image::load_from_memory(bytes).map_err(|e| FrameError::Decode {
-        channel: Channel::Colour,
-        message: e.to_string(),
-    })?;
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    check_dimensions(w, h)?;
-    let rgb = match img {
-        DynamicImage::ImageRgb8(buf) => buf.into_raw(),
-        other => other.to_rgb8().into_raw(),
-    };
+    let mut rgb = Vec::new();
+    let (w, h) = decode_colour_into(bytes, &mut rgb, &mut Vec::new())?;
     Ok((w, h, rgb))
 }
 
 /// Decodes a 16-bit single-channel depth PNG; returns (width, height, raw values).
 pub fn decode_depth_raw(bytes: &[u8]) -> Result<(usize, usize, Vec<u16>), FrameError> {
-    image_dimensions(bytes, Channel::Depth, true)?;
-    let img = image::load_from_memory_with_format(bytes, ImageFormat::Png).map_err(|e| {
-        FrameError::Decode {
-            channel: Channel::Depth,
-            message: e.to_string(),
-        }
-    })?;
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    check_dimensions(w, h)?;
-    match img {
-        DynamicImage::ImageLuma16(buf) => Ok((w, h, buf.into_raw())),
-        other => Err(FrameError::DepthNot16Bit {
-            found: format!("{:?}", other.color()),
-        }),
+    let mut scratch = Vec::new();
+    let (w, h, colour_type) = decode_pixels(bytes, Channel::Depth, true, &mut scratch)?;
+    if colour_type != ColorType::L16 {
+        return Err(FrameError::DepthNot16Bit {
+            found: format!("{colour_type:?}"),
+        });
     }
+    let raw = scratch
+        .chunks_exact(2)
+        .map(|b| u16::from_ne_bytes([b[0], b[1]]))
+        .collect();
+    Ok((w, h, raw))
 }
 
 impl RgbdFrame {
@@ -260,11 +348,33 @@ impl RgbdFrame {
         depth: &[u8],
         settings: &DepthSettings,
     ) -> Result<Self, FrameError> {
+        let mut frame = Self::default();
+        frame.decode_into(colour, depth, settings, &mut DecodeScratch::default())?;
+        Ok(frame)
+    }
+
+    /// Decodes colour and depth image bytes into this frame, reusing its
+    /// buffers and `scratch`'s. On error the frame's contents are unspecified.
+    pub fn decode_into(
+        &mut self,
+        colour: &[u8],
+        depth: &[u8],
+        settings: &DepthSettings,
+        scratch: &mut DecodeScratch,
+    ) -> Result<(), FrameError> {
         settings.validate()?;
+        let DecodeScratch {
+            colour: colour_scratch,
+            depth: depth_scratch,
+        } = scratch;
+        let (rgb, depth_m) = (&mut self.rgb, &mut self.depth_m);
         // The two images are independent: decode them on two threads.
-        let (depth, colour) = rayon::join(|| decode_depth_raw(depth), || decode_colour(colour));
-        let (dw, dh, raw) = depth?;
-        let (cw, ch, rgb) = colour?;
+        let (depth_size, colour_size) = rayon::join(
+            || decode_depth_into(depth, settings, depth_m, depth_scratch),
+            || decode_colour_into(colour, rgb, colour_scratch),
+        );
+        let (dw, dh) = depth_size?;
+        let (cw, ch) = colour_size?;
         if (cw, ch) != (dw, dh) {
             return Err(FrameError::SizeMismatch {
                 colour_width: cw,
@@ -273,12 +383,9 @@ impl RgbdFrame {
                 depth_height: dh,
             });
         }
-        Ok(Self {
-            width: dw,
-            height: dh,
-            rgb,
-            depth_m: raw.iter().map(|&r| settings.to_metres(r)).collect(),
-        })
+        self.width = dw;
+        self.height = dh;
+        Ok(())
     }
 
     /// Builds a frame from raw buffers: colour RGBA8 or RGB8 (by length), depth raw u16.
@@ -377,7 +484,7 @@ impl RgbdFrame {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use image::{ImageBuffer, Luma, Rgb};
+    use image::{DynamicImage, ImageBuffer, Luma, Rgb};
 
     fn png(img: DynamicImage) -> Vec<u8> {
         let mut out = std::io::Cursor::new(Vec::new());

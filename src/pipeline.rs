@@ -6,7 +6,7 @@
 
 use crate::camera::{CameraPreset, Intrinsics};
 use crate::clock::now_ms;
-use crate::frame::{DepthSettings, FrameError, RgbdFrame};
+use crate::frame::{DecodeScratch, DepthSettings, FrameError, RgbdFrame};
 use crate::fusion::{
     remove_unstable, FusionConfig, FusionStats, Integrator, Prediction, SurfelMap,
 };
@@ -238,6 +238,9 @@ pub struct Pipeline {
     pyramid: FramePyramid,
     /// The input at half resolution, when `half_resolution` is set.
     half_frame: RgbdFrame,
+    /// The last frame decoded by `push_png`, and the decoder's buffers.
+    decoded: RgbdFrame,
+    scratch: DecodeScratch,
     map: SurfelMap,
     prediction: Prediction,
     integrator: Integrator,
@@ -256,6 +259,8 @@ impl Pipeline {
         Ok(Self {
             pyramid: FramePyramid::new(&config.working_intrinsics(), &config.preprocess),
             half_frame: RgbdFrame::default(),
+            decoded: RgbdFrame::default(),
+            scratch: DecodeScratch::default(),
             recovery: recovery_tracker(&config.tracker),
             config,
             map: SurfelMap::default(),
@@ -323,9 +328,16 @@ impl Pipeline {
         timestamp: f64,
     ) -> Result<FrameReport, PipelineError> {
         let t0 = now_ms();
-        let frame = RgbdFrame::from_png_bytes(colour, depth, &self.config.depth)?;
+        // Decoded into buffers kept from frame to frame; taken out of `self`
+        // for the call below and put back whatever its outcome.
+        let mut frame = std::mem::take(&mut self.decoded);
+        let decoded = frame.decode_into(colour, depth, &self.config.depth, &mut self.scratch);
         let decode_ms = now_ms() - t0;
-        let mut report = self.push_frame(&frame, timestamp)?;
+        let pushed = decoded
+            .map_err(PipelineError::from)
+            .and_then(|()| self.push_frame(&frame, timestamp));
+        self.decoded = frame;
+        let mut report = pushed?;
         report.timings.decode_ms = decode_ms;
         report.timings.total_ms += decode_ms;
         Ok(report)
