@@ -178,7 +178,7 @@ export class Renderer {
     this.fenceIssuedAt = 0;
     this.gpuMs = 0; // how long the GPU took for the last frame (issue -> fence signalled)
     this.lastDrawAt = 0;
-    this.throttle = false; // while SLAM runs: leave the GPU (often a CPU rasteriser) idle half the time
+    this.throttle = false; // while SLAM runs: leave the GPU (often a CPU rasteriser) idle 3/4 of the time
     this.vao = gl.createVertexArray();
     this.ensureCapacity(1 << 16);
 
@@ -536,7 +536,10 @@ export class Renderer {
     }
     if (!this.dirty) return;
     const now = performance.now();
-    if (this.throttle && now - this.lastDrawAt < this.gpuMs) return;
+    // A software rasteriser (SwiftShader, no GPU) shares the CPU cores with
+    // the SLAM threads: while they run, draw at most 10 times a second and
+    // leave the rasteriser idle three quarters of the time.
+    if (this.throttle && now - this.lastDrawAt < Math.max(100, 4 * this.gpuMs)) return;
     this.dirty = false;
     this.lastDrawAt = now;
     this.flushUploads();
