@@ -1,0 +1,23 @@
+#!/usr/bin/env node
+// Plays the bundled sample in headless Chromium (threaded module, flow
+// overlay off) and prints the page's own speed figures from
+// window.surfelSlamStatus: fps and median ms per stage in wasm.
+//
+//   node scripts/page-fps.mjs [--threads 0]
+// Needs www/pkg built (scripts/build.sh) and Debian's chromium.
+import { startBrowser, openPage, waitForStatus } from '../tests/browser/helpers.mjs';
+
+const single = process.argv.includes('--threads') && process.argv[process.argv.indexOf('--threads') + 1] === '0';
+const env = await startBrowser();
+try {
+  const { page } = await openPage(env, single ? '/?threads=0' : '/');
+  const s = await waitForStatus(page, (st) => st.done || st.framesProcessed >= 44, { timeoutMs: 240_000 });
+  console.log(
+    `sample: ${s.framesProcessed} frames, module ${s.module} (${s.threads} threads), ` +
+      `fps ${s.fpsAverage} average / ${s.fps} recent, lost ${s.framesLost}, surfels ${s.surfels}`,
+  );
+  console.log(`median ms in wasm: ${JSON.stringify(s.stageMedianMs)}`);
+} finally {
+  await env.close?.();
+  await env.browser?.close?.();
+}
