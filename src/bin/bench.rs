@@ -18,11 +18,8 @@ pub struct BenchArgs {
     /// then forwards again, so the camera motion stays continuous.
     #[arg(long)]
     frames: Option<usize>,
-    /// Camera preset; default from the layout.
-    #[arg(long)]
-    preset: Option<String>,
     #[command(flatten)]
-    overrides: CameraOverrides,
+    camera: CameraOverrides,
     #[command(flatten)]
     tracking: TrackingArgs,
 }
@@ -85,8 +82,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         bytes.push((read(&entry.colour)?, read(&entry.depth)?));
     }
     let total = args.frames.unwrap_or(sequence.frames.len());
-    let mut config = config_for(&sequence, args.preset.as_deref(), &args.overrides)?;
-    args.tracking.apply(&mut config)?;
+    let mut config = config_for(&sequence, &args.camera, &args.tracking)?;
     let first = surfel_slam::RgbdFrame::from_png_bytes(&bytes[0].0, &bytes[0].1, &config.depth)
         .context("decoding the first frame")?;
     config.intrinsics.width = first.width;

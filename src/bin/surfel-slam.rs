@@ -66,11 +66,8 @@ struct RunArgs {
     /// Keep every Nth frame only (simulates dropped frames or a slower camera).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     stride: u32,
-    /// Camera preset (tum-fr1, tum-fr2, tum-fr3, icl-nuim, 7-scenes); default from the layout.
-    #[arg(long)]
-    preset: Option<String>,
     #[command(flatten)]
-    overrides: CameraOverrides,
+    camera: CameraOverrides,
     #[command(flatten)]
     tracking: TrackingArgs,
     /// No progress bar.
@@ -120,6 +117,9 @@ impl TrackingArgs {
 
 #[derive(Args)]
 pub(crate) struct CameraOverrides {
+    /// Camera preset (tum-fr1, tum-fr2, tum-fr3, icl-nuim, 7-scenes); default from the layout.
+    #[arg(long)]
+    preset: Option<String>,
     /// Focal length x, pixels.
     #[arg(long)]
     fx: Option<f32>,
@@ -182,12 +182,14 @@ fn describe(e: &anyhow::Error) -> String {
     out
 }
 
+/// The configuration for `sequence` with the command line's camera and
+/// tracking options applied, validated.
 pub(crate) fn config_for(
     sequence: &Sequence,
-    preset: Option<&str>,
     o: &CameraOverrides,
+    tracking: &TrackingArgs,
 ) -> Result<SlamConfig> {
-    let preset = match preset {
+    let preset = match &o.preset {
         Some(name) => CameraPreset::from_name(name).with_context(|| {
             let names: Vec<_> = CameraPreset::ALL.iter().map(|p| p.name()).collect();
             format!("unknown preset {name:?}; known: {}", names.join(", "))
@@ -204,6 +206,7 @@ pub(crate) fn config_for(
     d.scale = o.depth_scale.unwrap_or(d.scale);
     d.min_m = o.depth_min.unwrap_or(d.min_m);
     d.max_m = o.depth_max.unwrap_or(d.max_m);
+    tracking.apply(&mut config)?;
     // Refuse bad camera settings before reading any image.
     config.validate()?;
     Ok(config)
@@ -249,8 +252,7 @@ fn run(args: &RunArgs) -> Result<u8> {
             args.first
         );
     }
-    let mut config = config_for(&sequence, args.preset.as_deref(), &args.overrides)?;
-    args.tracking.apply(&mut config)?;
+    let mut config = config_for(&sequence, &args.camera, &args.tracking)?;
     // The sequence's own image size wins over the preset's.
     let (width, height) = first_readable(&args.dataset, &frames, &config)?;
     config.intrinsics.width = width;

@@ -10,11 +10,12 @@
 // folder defaults to ../shared/data/icl_office_kt0. Build the package first:
 // scripts/build.sh --no-threads. tests/node/long_run.test.mjs runs a short
 // version on the bundled sample clip.
-import { readFile, readdir } from 'node:fs/promises';
+import { readFile } from 'node:fs/promises';
 import { existsSync } from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath, pathToFileURL } from 'node:url';
 import { performance } from 'node:perf_hooks';
+import { listFiles } from './files.mjs';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 export const ROOT = path.resolve(here, '../..');
@@ -27,16 +28,6 @@ export async function loadPackage() {
   return { ...mod, memory: exports.memory };
 }
 
-async function listFiles(dir, rel = '', depth = 2, out = []) {
-  for (const entry of await readdir(path.join(dir, rel), { withFileTypes: true })) {
-    if (entry.name.startsWith('.')) continue;
-    const child = rel ? `${rel}/${entry.name}` : entry.name;
-    if (entry.isDirectory()) {
-      if (depth > 0) await listFiles(dir, child, depth - 1, out);
-    } else out.push(child);
-  }
-  return out;
-}
 
 /** Frame order going forwards then backwards: 0..n-1, n-2..1, 0.. */
 export function pingPong(n, count) {

@@ -11,11 +11,12 @@
 // ground truth); the last line is `median_ms_per_frame: N`, as in the CLI's
 // `surfel-slam bench`.
 // Build the package first: scripts/build.sh.
-import { readFile, readdir, writeFile } from 'node:fs/promises';
+import { readFile, writeFile } from 'node:fs/promises';
 import { existsSync } from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { performance } from 'node:perf_hooks';
+import { listFiles } from './files.mjs';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const root = path.resolve(here, '../..');
@@ -58,19 +59,6 @@ const { default: init, Slam, detectLayout, parseSequence, ateTum, threadCount } 
 );
 await init({ module_or_path: await readFile(path.join(pkgDir, 'surfel_slam_bg.wasm')) });
 
-// Relative file names, '/' separated, 3 levels deep (like the CLI's listing).
-async function listFiles(dir, rel = '', depth = 2, out = []) {
-  for (const entry of await readdir(path.join(dir, rel), { withFileTypes: true })) {
-    if (entry.name.startsWith('.')) continue;
-    const child = rel ? `${rel}/${entry.name}` : entry.name;
-    if (entry.isDirectory()) {
-      if (depth > 0) await listFiles(dir, child, depth - 1, out);
-    } else {
-      out.push(child);
-    }
-  }
-  return out;
-}
 
 const names = (await listFiles(folder)).sort();
 const layout = detectLayout(names);
