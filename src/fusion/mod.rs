@@ -14,7 +14,7 @@ pub mod predict;
 mod surfel_map;
 
 pub use cleanup::remove_unstable;
-pub use integrate::{FusionStats, Integrator};
+pub use integrate::{FusionStats, Integrator, ABSORBED};
 pub use predict::Prediction;
 pub use surfel_map::SurfelMap;
 
@@ -66,6 +66,7 @@ impl FusionConfig {
     #[inline]
     #[must_use]
     pub fn predicts(&self, map: &SurfelMap, i: usize, frame: u32) -> bool {
-        frame < self.warmup_frames || map.confidences[i] >= self.stable_confidence
+        let c = map.confidences[i];
+        c >= self.stable_confidence || (frame < self.warmup_frames && c >= 0.0)
     }
 }

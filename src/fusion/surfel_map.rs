@@ -52,6 +52,9 @@ pub struct SurfelMap {
     bounds: ChunkBounds,
     /// Frame of the last removal of unstable surfels (see `remove_unstable`).
     pub(super) last_cleanup: Option<u32>,
+    /// Lowest index of a surfel absorbed into another since the last
+    /// cleanup: the next cleanup compacts the map from there.
+    pub(super) first_absorbed: Option<usize>,
 }
 
 impl SurfelMap {
@@ -100,6 +103,7 @@ impl SurfelMap {
         self.change_hi = 0;
         self.bounds.clear();
         self.last_cleanup = None;
+        self.first_absorbed = None;
         self.positions.clear();
         self.normals.clear();
         self.colours.clear();
