@@ -85,34 +85,84 @@ pub fn motion_magnitude(pose: &DAffine3) -> (f64, f64) {
     (pose.translation.length(), angle)
 }
 
+/// Residuals buffered per lane before they are summed: eight, so that the
+/// per-lane sums map onto 256-bit vectors (two 128-bit ones on baseline
+/// x86-64 and wasm simd128).
+const LANES: usize = 8;
+
 /// Normal equations of a short run of residuals (one image row) in f32, to
 /// be flushed into an f64 [`NormalEquations`]: the f32 sums stay short
 /// enough to keep their precision, and the hot loop runs at f32 speed.
-#[derive(Debug, Clone, Copy, Default)]
+///
+/// Residuals are buffered eight at a time and each of the 28 sums is kept
+/// per lane, so the compiler emits SIMD for the products and sums (a
+/// floating-point sum over one lane cannot be vectorised without
+/// reordering it); the lanes are added up when flushed.
+#[derive(Debug, Clone, Copy)]
 pub struct RowAccumulator {
-    /// Upper triangle of `sum w J^T J` (21 values, row by row), then
-    /// `sum w J^T r` (6), then `sum w r^2`.
-    sums: [f32; 28],
+    /// Buffered Jacobian rows, one array per component.
+    jacobians: [[f32; LANES]; 6],
+    residuals: [f32; LANES],
+    weights: [f32; LANES],
+    /// Buffered residuals not yet summed.
+    pending: usize,
+    /// Per lane: upper triangle of `sum w J^T J` (21 values, row by row),
+    /// then `sum w J^T r` (6), then `sum w r^2`.
+    sums: [[f32; LANES]; 28],
     count: usize,
+}
+
+impl Default for RowAccumulator {
+    fn default() -> Self {
+        Self {
+            jacobians: [[0.0; LANES]; 6],
+            residuals: [0.0; LANES],
+            weights: [0.0; LANES],
+            pending: 0,
+            sums: [[0.0; LANES]; 28],
+            count: 0,
+        }
+    }
 }
 
 impl RowAccumulator {
     /// Adds one residual `r` with Jacobian row `j` and weight `w`.
     #[inline]
     pub fn add(&mut self, j: &[f32; 6], r: f32, w: f32) {
+        let lane = self.pending;
+        for (column, &value) in self.jacobians.iter_mut().zip(j) {
+            column[lane] = value;
+        }
+        self.residuals[lane] = r;
+        self.weights[lane] = w;
+        self.pending += 1;
+        self.count += 1;
+        if self.pending == LANES {
+            self.sum_pending();
+        }
+    }
+
+    /// Adds the buffered residuals into the per-lane sums.
+    #[inline]
+    fn sum_pending(&mut self) {
+        let (j, r, w) = (&self.jacobians, &self.residuals, &self.weights);
         let mut k = 0;
         for row in 0..6 {
-            let wj = w * j[row];
+            let wj: [f32; LANES] = std::array::from_fn(|l| w[l] * j[row][l]);
             for col in row..6 {
-                self.sums[k] += wj * j[col];
+                for l in 0..LANES {
+                    self.sums[k][l] += wj[l] * j[col][l];
+                }
                 k += 1;
             }
+            for l in 0..LANES {
+                self.sums[21 + row][l] += wj[l] * r[l];
+            }
         }
-        for row in 0..6 {
-            self.sums[21 + row] += w * j[row] * r;
+        for l in 0..LANES {
+            self.sums[27][l] += w[l] * r[l] * r[l];
         }
-        self.sums[27] += w * r * r;
-        self.count += 1;
+        self.pending = 0;
     }
 
     /// Adds the sums into `system` and resets them.
@@ -121,15 +171,25 @@ impl RowAccumulator {
         if self.count == 0 {
             return;
         }
+        // Unused lanes of a partial batch add nothing.
+        for lane in self.pending..LANES {
+            for column in &mut self.jacobians {
+                column[lane] = 0.0;
+            }
+            self.residuals[lane] = 0.0;
+            self.weights[lane] = 0.0;
+        }
+        self.sum_pending();
+        let total = |lanes: &[f32; LANES]| lanes.iter().map(|&v| f64::from(v)).sum::<f64>();
         let mut k = 0;
         for row in 0..6 {
             for col in row..6 {
-                system.a[row][col] += f64::from(self.sums[k]);
+                system.a[row][col] += total(&self.sums[k]);
                 k += 1;
             }
-            system.b[row] += f64::from(self.sums[21 + row]);
+            system.b[row] += total(&self.sums[21 + row]);
         }
-        system.cost += f64::from(self.sums[27]);
+        system.cost += total(&self.sums[27]);
         system.count += self.count;
         *self = Self::default();
     }
@@ -278,6 +338,42 @@ fn cholesky_solve(mut m: [[f64; 6]; 6], rhs: [f64; 6]) -> Option<Twist> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn row_accumulator_matches_f64_sums_for_partial_batches() {
+        for n in [0usize, 1, 7, 8, 9, 23] {
+            let mut direct = NormalEquations::default();
+            let mut acc = RowAccumulator::default();
+            let mut system = NormalEquations::default();
+            for i in 0..n {
+                let x = i as f32;
+                let j = [0.1 * x, -0.2, 0.3 + x, 1.0, -0.5 * x, 0.25];
+                let (r, w) = (0.01 * x - 0.02, 1.0 / (1.0 + x));
+                acc.add(&j, r, w);
+                for row in 0..6 {
+                    for col in row..6 {
+                        direct.a[row][col] += f64::from(w * j[row] * j[col]);
+                    }
+                    direct.b[row] += f64::from(w * j[row] * r);
+                }
+                direct.cost += f64::from(w * r * r);
+                direct.count += 1;
+            }
+            acc.flush_into(&mut system);
+            assert_eq!(system.count, direct.count);
+            for row in 0..6 {
+                for col in 0..6 {
+                    let (a, b) = (system.a[row][col], direct.a[row][col]);
+                    assert!(
+                        (a - b).abs() <= 1e-4 * b.abs().max(1.0),
+                        "a[{row}][{col}] {a} vs {b}"
+                    );
+                }
+                assert!((system.b[row] - direct.b[row]).abs() < 1e-5);
+            }
+            assert!((system.cost - direct.cost).abs() < 1e-6);
+        }
+    }
 
     #[test]
     fn exp_log_round_trip() {
