@@ -14,7 +14,7 @@
 use super::chunk_bounds::CHUNK;
 use super::frustum::visible_chunks;
 use super::index_map::{pixel_of, RigidF32};
-use super::surfel_map::ChunkMut;
+use super::surfel_map::{ChunkMut, Surfel};
 use super::{FusionConfig, SurfelMap};
 use crate::camera::Intrinsics;
 use crate::preprocess::FramePyramid;
@@ -83,15 +83,6 @@ impl ChunkUpdate {
 
 /// Marks a surfel that is no pixel's candidate this frame.
 const NO_PIXEL: u32 = u32::MAX;
-
-/// One measurement in the world frame, with its weight.
-struct Measurement {
-    position: Vec3,
-    normal: Vec3,
-    colour: [u8; 4],
-    radius: f32,
-    weight: f32,
-}
 
 impl Integrator {
     /// Fuses the frame in `pyramid` seen from `world_from_camera` into `map`
@@ -194,12 +185,12 @@ impl Integrator {
             let radius = (std::f32::consts::SQRT_2 * p.z / focal / n_cam.z.abs().max(0.25))
                 .min(config.max_radius_m);
             let c = &pyramid.rgb[3 * i..3 * i + 3];
-            Measurement {
+            Surfel {
                 position: world_from_camera_f.point(p),
                 normal: world_from_camera_f.vector(n_cam),
                 colour: [c[0], c[1], c[2], 255],
                 radius,
-                weight: weight_u[i % w] * weight_v[i / w],
+                confidence: weight_u[i % w] * weight_v[i / w],
             }
         };
 
@@ -271,7 +262,14 @@ impl Integrator {
                 continue;
             }
             let m = measure(i);
-            map.push(m.position, m.normal, m.colour, m.radius, m.weight, frame);
+            map.push(
+                m.position,
+                m.normal,
+                m.colour,
+                m.radius,
+                m.confidence,
+                frame,
+            );
             stats.added += 1;
         }
         stats
@@ -299,19 +297,9 @@ impl Integrator {
             {
                 continue;
             }
-            let (cb, cj) = (map.confidences[b], map.confidences[j]);
-            let total = cb + cj;
-            let (wb, wj) = (cb / total, cj / total);
-            let position = map.positions[b] * wb + map.positions[j] * wj;
-            map.positions[b] = position;
-            let normal = map.normals[b] * wb + map.normals[j] * wj;
-            map.normals[b] = normal.try_normalize().unwrap_or(map.normals[b]);
-            let colour_j = map.colours[j];
-            for (stored, &other) in map.colours[b].iter_mut().zip(&colour_j).take(3) {
-                *stored = (f32::from(*stored) * wb + f32::from(other) * wj).round() as u8;
-            }
-            map.radii[b] = map.radii[b].min(map.radii[j]);
-            map.confidences[b] = total;
+            let merged = map.surfel(b).merged_with(&map.surfel(j));
+            map.set_surfel(b, &merged);
+            let position = merged.position;
             map.confidences[j] = ABSORBED;
             map.grow_bounds(b / CHUNK, position, position);
             map.first_absorbed = Some(map.first_absorbed.map_or(j, |a| a.min(j)));
@@ -348,7 +336,7 @@ fn covered_by_neighbour(
     map: &SurfelMap,
     (u, v): (usize, usize),
     (w, h): (usize, usize),
-    m: &Measurement,
+    m: &Surfel,
     (cos_gate, depth_gate): (f32, f32),
 ) -> bool {
     (v.saturating_sub(1)..(v + 2).min(h)).any(|y| {
@@ -367,24 +355,13 @@ fn covered_by_neighbour(
     })
 }
 
-/// Confidence-weighted average of surfel `local` of `chunk` and a
-/// measurement; returns the new position.
-fn merge(chunk: &mut ChunkMut<'_>, j: usize, m: &Measurement, frame: u32) -> Vec3 {
-    let c = chunk.confidences[j];
-    let total = c + m.weight;
-    let (a, b) = (c / total, m.weight / total);
-    let position = chunk.positions[j] * a + m.position * b;
-    chunk.positions[j] = position;
-    let n = chunk.normals[j] * a + m.normal * b;
-    chunk.normals[j] = n.try_normalize().unwrap_or(chunk.normals[j]);
-    for (stored, &measured) in chunk.colours[j].iter_mut().zip(&m.colour).take(3) {
-        *stored = (f32::from(*stored) * a + f32::from(measured) * b).round() as u8;
-    }
-    chunk.radii[j] = chunk.radii[j].min(chunk.radii[j] * a + m.radius * b);
-    chunk.confidences[j] = total;
+/// Merges measurement `m` into surfel `local` of `chunk`; returns its new position.
+fn merge(chunk: &mut ChunkMut<'_>, local: usize, m: &Surfel, frame: u32) -> Vec3 {
+    let merged = chunk.surfel(local).merged_with(m);
+    chunk.set_surfel(local, &merged);
     // Not marked changed: a merge refines a surfel by less than the sensor
     // noise; renderers refresh merged data in the background (see
     // `SurfelMap::take_changed_range`).
-    chunk.last_seen[j] = frame;
-    position
+    chunk.last_seen[local] = frame;
+    merged.position
 }

@@ -16,7 +16,7 @@ mod surfel_map;
 pub use cleanup::remove_unstable;
 pub use integrate::{FusionStats, Integrator, ABSORBED};
 pub use predict::Prediction;
-pub use surfel_map::SurfelMap;
+pub use surfel_map::{Surfel, SurfelMap};
 
 /// Settings of the fusion stage.
 #[derive(Debug, Clone, Copy, PartialEq)]

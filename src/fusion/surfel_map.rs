@@ -8,6 +8,46 @@ use super::chunk_bounds::{ChunkBounds, CHUNK};
 use glam::Vec3;
 use rayon::prelude::*;
 
+/// One surfel's values, or one measurement about to be merged or added.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Surfel {
+    /// Centre, world frame, metres.
+    pub position: Vec3,
+    /// Unit normal, world frame.
+    pub normal: Vec3,
+    /// RGBA8 colour (A = 255).
+    pub colour: [u8; 4],
+    /// Disk radius, metres.
+    pub radius: f32,
+    /// Confidence (for a measurement: its weight).
+    pub confidence: f32,
+}
+
+impl Surfel {
+    /// Confidence-weighted average of `self` and `other` (Keller et al.
+    /// 2013): position, normal (renormalised) and colour averaged, the
+    /// radius never grows, the confidences add up.
+    #[must_use]
+    pub fn merged_with(&self, other: &Surfel) -> Surfel {
+        let total = self.confidence + other.confidence;
+        let (a, b) = (self.confidence / total, other.confidence / total);
+        let normal = (self.normal * a + other.normal * b)
+            .try_normalize()
+            .unwrap_or(self.normal);
+        // +0.5 then truncation rounds the non-negative mean without a libm call.
+        let colour = std::array::from_fn(|c| {
+            (f32::from(self.colour[c]) * a + f32::from(other.colour[c]) * b + 0.5) as u8
+        });
+        Surfel {
+            position: self.position * a + other.position * b,
+            normal,
+            colour,
+            radius: self.radius.min(self.radius * a + other.radius * b),
+            confidence: total,
+        }
+    }
+}
+
 /// Mutable view of one chunk of surfels (`CHUNK` consecutive indices), for
 /// updating disjoint parts of the map in parallel.
 pub struct ChunkMut<'a> {
@@ -57,7 +97,52 @@ pub struct SurfelMap {
     pub(super) first_absorbed: Option<usize>,
 }
 
+impl ChunkMut<'_> {
+    /// The values of surfel `local` (index within the chunk).
+    #[must_use]
+    pub fn surfel(&self, local: usize) -> Surfel {
+        Surfel {
+            position: self.positions[local],
+            normal: self.normals[local],
+            colour: self.colours[local],
+            radius: self.radii[local],
+            confidence: self.confidences[local],
+        }
+    }
+
+    /// Overwrites the values of surfel `local` (index within the chunk).
+    pub fn set_surfel(&mut self, local: usize, s: &Surfel) {
+        self.positions[local] = s.position;
+        self.normals[local] = s.normal;
+        self.colours[local] = s.colour;
+        self.radii[local] = s.radius;
+        self.confidences[local] = s.confidence;
+    }
+}
+
 impl SurfelMap {
+    /// The values of surfel `i`.
+    #[must_use]
+    pub fn surfel(&self, i: usize) -> Surfel {
+        Surfel {
+            position: self.positions[i],
+            normal: self.normals[i],
+            colour: self.colours[i],
+            radius: self.radii[i],
+            confidence: self.confidences[i],
+        }
+    }
+
+    /// Overwrites the values of surfel `i` (not its frames); the caller
+    /// reports a moved centre with [`SurfelMap::grow_bounds`].
+    pub fn set_surfel(&mut self, i: usize, s: &Surfel) {
+        self.positions[i] = s.position;
+        self.normals[i] = s.normal;
+        self.colours[i] = s.colour;
+        self.radii[i] = s.radius;
+        self.confidences[i] = s.confidence;
+    }
+
     /// Number of surfels.
     #[must_use]
     pub fn len(&self) -> usize {
