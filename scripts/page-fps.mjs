@@ -14,9 +14,11 @@ try {
   const s = await waitForStatus(page, (st) => st.done || st.framesProcessed >= 44, { timeoutMs: 240_000 });
   console.log(
     `sample: ${s.framesProcessed} frames, module ${s.module} (${s.threads} threads), ` +
-      `fps ${s.fpsAverage} average / ${s.fps} recent, lost ${s.framesLost}, surfels ${s.surfels}`,
+      `fps ${s.fpsAverage} average / ${s.fps} recent, lost ${s.framesLost}, surfels ${s.surfels}, ` +
+      `colour decoded by ${s.colourDecoder} (${s.framesColourDecodedInBrowser} frames in the browser)`,
   );
   console.log(`median ms in wasm: ${JSON.stringify(s.stageMedianMs)}`);
+  console.log(`median ms in the worker: ${JSON.stringify(s.workerMedianMs)}`);
 } finally {
   await env.close?.();
   await env.browser?.close?.();
