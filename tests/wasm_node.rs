@@ -391,7 +391,9 @@ fn rgba_with_depth_png_matches_push_frame() {
     )));
     let depth8 = png(image::DynamicImage::ImageLuma8(image::GrayImage::new(w, h)));
     let rgba_small = vec![0_u8; 4 * 8 * 8];
-    let cases: [(&str, u32, u32, &[u8], &[u8], &str); 6] = [
+    /// (what, width, height, rgba, depth PNG, expected message part)
+    type Case<'a> = (&'a str, u32, u32, &'a [u8], &'a [u8], &'a str);
+    let cases: [Case; 6] = [
         (
             "short rgba",
             w,
