@@ -132,6 +132,8 @@ function countRunFrame(msg) {
 // ?threads=0 forces the single-threaded SIMD module (for comparisons).
 const workerUrl = new URL('./worker.js', import.meta.url);
 if (new URLSearchParams(location.search).get('threads') === '0') workerUrl.searchParams.set('threads', '0');
+// ?colour=wasm decodes colour images in wasm instead of the browser (for comparisons).
+if (new URLSearchParams(location.search).get('colour') === 'wasm') workerUrl.searchParams.set('colour', 'wasm');
 const worker = new Worker(workerUrl, { type: 'module' });
 worker.onerror = (e) => {
   reportError(`the worker failed: ${e.message || 'could not start (is www/pkg/ built? run scripts/build.sh)'}`);
@@ -263,7 +265,7 @@ const handlers = {
       renderer.setCameraPose(msg.result.pose, intr);
       anchorGroundTruth(msg.timestamp, msg.result.pose);
     }
-    views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow);
+    views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow, msg.input.colourPreview);
     if (msg.done) status.done = true;
     syncStatus();
     // How far the display trails the worker (main thread busy drawing or uploading).
@@ -276,7 +278,7 @@ const handlers = {
   'frame-error'(msg) {
     stats.onFailedFrame(msg);
     noteColourDecoder(msg);
-    if (msg.input) views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || 5000);
+    if (msg.input) views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || 5000, null, msg.input.colourPreview);
     reportError(`frame ${msg.index + 1} skipped — ${msg.message}`);
     syncStatus();
   },

@@ -12,6 +12,10 @@ export const browserCanDecode = typeof createImageBitmap === 'function' && typeo
 let canvas = null;
 let context = null;
 
+/** Size of the page's colour thumbnail (views.js draws it scaled to its canvas). */
+export const PREVIEW_WIDTH = 192;
+export const PREVIEW_HEIGHT = 144;
+
 /**
  * Why the browser's decode of these bytes would differ from the wasm
  * decoder's, or null. 16-bit PNGs are reduced to 8 bits by rounding rules of
@@ -26,12 +30,14 @@ export function browserDecodeCaveat(bytes) {
 
 /**
  * Decodes colour image bytes (PNG, JPEG) into `{ width, height, rgba }`
- * (`rgba` a Uint8ClampedArray, 4 bytes a pixel). Rejects when the browser
- * cannot decode them, or when a pixel is not opaque: the canvas that reads
- * the pixels back stores premultiplied alpha, which would change the colour
- * of translucent pixels (the wasm decoder ignores alpha).
+ * (`rgba` a Uint8ClampedArray, 4 bytes a pixel), plus `preview`, a
+ * PREVIEW_WIDTH x PREVIEW_HEIGHT ImageBitmap of it when `preview` is true
+ * (the page's thumbnail: no second decode on the page). Rejects when the
+ * browser cannot decode them, or when a pixel is not opaque: the canvas that
+ * reads the pixels back stores premultiplied alpha, which would change the
+ * colour of translucent pixels (the wasm decoder ignores alpha).
  */
-export async function decodeColour(bytes) {
+export async function decodeColour(bytes, { preview = false } = {}) {
   const caveat = browserDecodeCaveat(bytes);
   if (caveat) throw new Error(`${caveat}: decoded in wasm`);
   const bitmap = await createImageBitmap(new Blob([bytes]), {
@@ -51,7 +57,10 @@ export async function decodeColour(bytes) {
     context.drawImage(bitmap, 0, 0);
     const rgba = context.getImageData(0, 0, width, height).data;
     if (!opaque(rgba)) throw new Error('translucent pixels: decoded in wasm');
-    return { width, height, rgba };
+    const thumbnail = preview
+      ? await createImageBitmap(bitmap, { resizeWidth: PREVIEW_WIDTH, resizeHeight: PREVIEW_HEIGHT, resizeQuality: 'medium' })
+      : null;
+    return { width, height, rgba, preview: thumbnail };
   } finally {
     bitmap.close();
   }
@@ -79,12 +88,12 @@ function opaque(rgba) {
  * exactly; pushFrame then decodes it or says what is wrong with it).
  * Rejects only when a file cannot be read.
  */
-export async function readAndDecodeColour(source, { colour, depth }) {
+export async function readAndDecodeColour(source, { colour, depth }, decode = true) {
   const [colourBuf, depthBuf] = await Promise.all([source.read(colour), source.read(depth)]);
   let decoded = null;
-  if (browserCanDecode) {
+  if (decode && browserCanDecode) {
     try {
-      decoded = await decodeColour(colourBuf);
+      decoded = await decodeColour(colourBuf, { preview: true });
     } catch {
       decoded = null;
     }

@@ -6,11 +6,12 @@
 // reaches the SLAM worker as one message, its buffers transferred.
 //
 // Messages in:  {type: 'source', id, entries} (a sequence's files, as for
-//               SequenceSource), {type: 'read', id, index, colour, depth}
-//               (relative paths).
+//               SequenceSource), {type: 'read', id, index, colour, depth,
+//               decode} (relative paths; decode: false = read only).
 // Messages out: {id, index, colourBuf, depthBuf, decoded} (`decoded`:
-//               {width, height, rgba} or null when wasm is to decode the
-//               colour image) or {id, index, error} (a file cannot be read).
+//               {width, height, rgba, preview} or null when wasm is to decode
+//               the colour image; `preview` the page's thumbnail, an
+//               ImageBitmap) or {id, index, error} (a file cannot be read).
 import { SequenceSource } from './sequence.js';
 import { readAndDecodeColour } from './colour-decode.js';
 
@@ -27,9 +28,10 @@ self.onmessage = async ({ data }) => {
   const source = sources.get(id);
   if (!source) return; // a sequence replaced since: nobody waits for it
   try {
-    const frame = await readAndDecodeColour(source, data);
+    const frame = await readAndDecodeColour(source, data, data.decode !== false);
     const transfer = [frame.colourBuf, frame.depthBuf];
     if (frame.decoded) transfer.push(frame.decoded.rgba.buffer);
+    if (frame.decoded?.preview) transfer.push(frame.decoded.preview);
     self.postMessage({ id, index, ...frame }, transfer);
   } catch (e) {
     self.postMessage({ id, index, error: e && e.message ? e.message : String(e) });

@@ -192,6 +192,8 @@ async function load({ name, entries, autoplay }) {
 // ---- reading frames: in frame-reader.js's worker when it runs ----------------
 
 let reader = null; // the frame reader's Worker; null: read on this thread
+// ?colour=wasm in the page URL: wasm decodes colour too (pushFrame), for comparisons.
+const browserColour = new URL(self.location.href).searchParams.get('colour') !== 'wasm';
 const readerWaiting = new Map(); // `${seq.id}:${index}` -> {resolve, reject, source, frame}
 
 function startReader() {
@@ -217,7 +219,7 @@ function startReader() {
     reader = null;
     for (const [key, w] of readerWaiting) {
       readerWaiting.delete(key);
-      readAndDecodeColour(w.source, w.frame).then(w.resolve, w.reject);
+      readAndDecodeColour(w.source, w.frame, browserColour).then(w.resolve, w.reject);
     }
   };
 }
@@ -235,9 +237,10 @@ function loadFrame(index) {
     const key = `${seq.id}:${index}`;
     const source = seq.source;
     promise = new Promise((resolve, reject) => readerWaiting.set(key, { resolve, reject, source, frame }));
-    reader.postMessage({ type: 'read', id: seq.id, index, colour: frame.colour, depth: frame.depth });
+    const { colour, depth } = frame;
+    reader.postMessage({ type: 'read', id: seq.id, index, colour, depth, decode: browserColour });
   } else {
-    promise = readAndDecodeColour(seq.source, frame);
+    promise = readAndDecodeColour(seq.source, frame, browserColour);
   }
   promise.catch(() => {}); // handled by whoever awaits it
   return promise;
@@ -310,9 +313,9 @@ async function processNext() {
         message: describeFrameError(frame, errorText(e)),
         frameCount: seq.frames.length,
         colourDecoder,
-        input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null },
+        input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null, colourPreview: decoded?.preview ?? null },
       },
-      [colourBuf, depthBuf],
+      decoded?.preview ? [colourBuf, depthBuf, decoded.preview] : [colourBuf, depthBuf],
     );
     return;
   }
@@ -387,7 +390,8 @@ async function processNext() {
         wall: performance.now() - t0,
         doneAt: performance.now() + performance.timeOrigin, // fps is measured where the work happens
       },
-      input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null },
+      // The thumbnail the browser made while decoding (the page need not decode the colour again).
+      input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null, colourPreview: decoded?.preview ?? null },
       flow: flowOverlay,
       done: last,
     },
@@ -404,6 +408,7 @@ async function processNext() {
       refresh.confidences.buffer,
       colourBuf,
       depthBuf,
+      ...(decoded?.preview ? [decoded.preview] : []),
     ],
   );
   lastFrameEnd = playing ? performance.now() : null;
