@@ -318,6 +318,27 @@ pub fn decode_depth_into(
     Ok((w, h))
 }
 
+/// Copies `pixels` RGB8 (`3 * count` bytes) or RGBA8 (`4 * count`, alpha
+/// dropped) into `rgb` as RGB8, reusing its allocation.
+fn rgb_from_pixels(pixels: &[u8], count: usize, rgb: &mut Vec<u8>) -> Result<(), FrameError> {
+    if pixels.len() == 4 * count {
+        rgb.resize(3 * count, 0);
+        for (out, p) in rgb.chunks_exact_mut(3).zip(pixels.chunks_exact(4)) {
+            out.copy_from_slice(&p[..3]);
+        }
+    } else if pixels.len() == 3 * count {
+        rgb.clear();
+        rgb.extend_from_slice(pixels);
+    } else {
+        return Err(FrameError::BufferLength {
+            channel: Channel::Colour,
+            found: pixels.len(),
+            expected: 4 * count,
+        });
+    }
+    Ok(())
+}
+
 /// Decodes a colour image (PNG or JPEG bytes) to RGB8; returns (width, height, rgb).
 pub fn decode_colour(bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), FrameError> {
     let mut rgb = Vec::new();
@@ -406,26 +427,67 @@ impl RgbdFrame {
                 expected: n,
             });
         }
-        let rgb = if colour.len() == 4 * n {
-            colour
-                .chunks_exact(4)
-                .flat_map(|p| [p[0], p[1], p[2]])
-                .collect()
-        } else if colour.len() == 3 * n {
-            colour.to_vec()
-        } else {
-            return Err(FrameError::BufferLength {
-                channel: Channel::Colour,
-                found: colour.len(),
-                expected: 4 * n,
-            });
-        };
+        let mut rgb = Vec::new();
+        rgb_from_pixels(colour, n, &mut rgb)?;
         Ok(Self {
             width,
             height,
             rgb,
             depth_m: depth_raw.iter().map(|&r| settings.to_metres(r)).collect(),
         })
+    }
+
+    /// Builds a frame from colour pixels decoded elsewhere (RGBA8 or RGB8 by
+    /// length, `width` x `height`; a browser's `getImageData`, say) and a
+    /// 16-bit single-channel depth PNG, decoded here.
+    pub fn from_pixels_and_depth_png(
+        width: usize,
+        height: usize,
+        colour: &[u8],
+        depth: &[u8],
+        settings: &DepthSettings,
+    ) -> Result<Self, FrameError> {
+        let mut frame = Self::default();
+        frame.decode_depth_with_pixels_into(
+            width,
+            height,
+            colour,
+            depth,
+            settings,
+            &mut DecodeScratch::default(),
+        )?;
+        Ok(frame)
+    }
+
+    /// As [`RgbdFrame::from_pixels_and_depth_png`], into this frame, reusing
+    /// its buffers and `scratch`'s. The checks and messages are those of
+    /// [`RgbdFrame::decode_into`] (colour/depth size mismatch, depth not
+    /// 16-bit, ...) plus a colour buffer whose length does not match the size.
+    /// On error the frame's contents are unspecified.
+    pub fn decode_depth_with_pixels_into(
+        &mut self,
+        width: usize,
+        height: usize,
+        colour: &[u8],
+        depth: &[u8],
+        settings: &DepthSettings,
+        scratch: &mut DecodeScratch,
+    ) -> Result<(), FrameError> {
+        settings.validate()?;
+        check_dimensions(width, height)?;
+        rgb_from_pixels(colour, width * height, &mut self.rgb)?;
+        let (dw, dh) = decode_depth_into(depth, settings, &mut self.depth_m, &mut scratch.depth)?;
+        if (width, height) != (dw, dh) {
+            return Err(FrameError::SizeMismatch {
+                colour_width: width,
+                colour_height: height,
+                depth_width: dw,
+                depth_height: dh,
+            });
+        }
+        self.width = dw;
+        self.height = dh;
+        Ok(())
     }
 
     /// Checks what a frame built by hand (its fields are public) could get
@@ -560,6 +622,89 @@ mod tests {
                 ..
             })
         ));
+    }
+
+    #[test]
+    fn colour_pixels_with_depth_png_match_both_pngs() {
+        let settings = DepthSettings::default();
+        let (w, h) = (5_usize, 3_usize);
+        let rgb: Vec<u8> = (0..3 * w * h).map(|i| (i * 7 % 251) as u8).collect();
+        let rgba: Vec<u8> = rgb
+            .chunks_exact(3)
+            .flat_map(|p| [p[0], p[1], p[2], 200])
+            .collect();
+        let colour_png = png(DynamicImage::ImageRgb8(
+            ImageBuffer::from_raw(w as u32, h as u32, rgb.clone()).expect("rgb"),
+        ));
+        let depth = depth16(w as u32, h as u32, 7500);
+        let both = RgbdFrame::from_png_bytes(&colour_png, &depth, &settings).expect("pngs");
+        for pixels in [&rgba, &rgb] {
+            let f = RgbdFrame::from_pixels_and_depth_png(w, h, pixels, &depth, &settings)
+                .expect("pixels + depth PNG");
+            assert_eq!(f, both);
+        }
+    }
+
+    #[test]
+    fn colour_pixels_with_depth_png_reject_bad_input() {
+        let settings = DepthSettings::default();
+        let rgba = vec![0_u8; 4 * 4 * 3];
+        let err =
+            RgbdFrame::from_pixels_and_depth_png(4, 3, &rgba[..10], &depth16(4, 3, 1), &settings);
+        assert!(
+            matches!(
+                err,
+                Err(FrameError::BufferLength {
+                    channel: Channel::Colour,
+                    found: 10,
+                    ..
+                })
+            ),
+            "{err:?}"
+        );
+        let err = RgbdFrame::from_pixels_and_depth_png(4, 3, &rgba, &depth16(5, 3, 1), &settings);
+        let message = err
+            .as_ref()
+            .map_err(ToString::to_string)
+            .expect_err("mismatch");
+        assert_eq!(message, "colour is 4x3 but depth is 5x3");
+        let d8 = png(DynamicImage::ImageLuma8(ImageBuffer::from_pixel(
+            4,
+            3,
+            Luma([7]),
+        )));
+        let err = RgbdFrame::from_pixels_and_depth_png(4, 3, &rgba, &d8, &settings);
+        assert!(
+            matches!(err, Err(FrameError::DepthNot16Bit { .. })),
+            "{err:?}"
+        );
+        let err = RgbdFrame::from_pixels_and_depth_png(4, 3, &rgba, b"not a png", &settings);
+        assert!(
+            matches!(
+                err,
+                Err(FrameError::Decode {
+                    channel: Channel::Depth,
+                    ..
+                })
+            ),
+            "{err:?}"
+        );
+        let err = RgbdFrame::from_pixels_and_depth_png(0, 3, &[], &depth16(4, 3, 1), &settings);
+        assert!(
+            matches!(err, Err(FrameError::BadDimensions { .. })),
+            "{err:?}"
+        );
+        let huge = RgbdFrame::from_pixels_and_depth_png(
+            usize::MAX,
+            2,
+            &rgba,
+            &depth16(4, 3, 1),
+            &settings,
+        );
+        assert!(
+            matches!(huge, Err(FrameError::BadDimensions { .. })),
+            "{huge:?}"
+        );
     }
 
     #[test]

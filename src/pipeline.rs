@@ -327,11 +327,44 @@ impl Pipeline {
         depth: &[u8],
         timestamp: f64,
     ) -> Result<FrameReport, PipelineError> {
+        self.decode_and_push(timestamp, |frame, settings, scratch| {
+            frame.decode_into(colour, depth, settings, scratch)
+        })
+    }
+
+    /// Processes a frame whose colour was decoded by the caller (RGBA8 or
+    /// RGB8 pixels, `width` x `height`: a browser decodes colour PNGs and
+    /// JPEGs faster than wasm) with a 16-bit depth PNG decoded here (a
+    /// browser would reduce it to 8 bits). `decode_ms` counts the depth.
+    pub fn push_pixels_and_depth_png(
+        &mut self,
+        width: usize,
+        height: usize,
+        colour: &[u8],
+        depth: &[u8],
+        timestamp: f64,
+    ) -> Result<FrameReport, PipelineError> {
+        self.decode_and_push(timestamp, |frame, settings, scratch| {
+            frame.decode_depth_with_pixels_into(width, height, colour, depth, settings, scratch)
+        })
+    }
+
+    /// Runs `decode` into the reused frame buffers, then [`Pipeline::push_frame`];
+    /// the report's `decode_ms` is `decode`'s time.
+    fn decode_and_push(
+        &mut self,
+        timestamp: f64,
+        decode: impl FnOnce(
+            &mut RgbdFrame,
+            &DepthSettings,
+            &mut DecodeScratch,
+        ) -> Result<(), FrameError>,
+    ) -> Result<FrameReport, PipelineError> {
         let t0 = now_ms();
         // Decoded into buffers kept from frame to frame; taken out of `self`
         // for the call below and put back whatever its outcome.
         let mut frame = std::mem::take(&mut self.decoded);
-        let decoded = frame.decode_into(colour, depth, &self.config.depth, &mut self.scratch);
+        let decoded = decode(&mut frame, &self.config.depth, &mut self.scratch);
         let decode_ms = now_ms() - t0;
         let pushed = decoded
             .map_err(PipelineError::from)

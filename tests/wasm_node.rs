@@ -345,6 +345,105 @@ fn bad_input_throws_and_the_pipeline_keeps_working() {
     assert_eq!(slam.frames(), 4);
 }
 
+/// The page's path: colour decoded by the browser (RGBA pixels), depth as a
+/// PNG decoded in wasm. Same poses and map as `pushFrame` with both PNGs;
+/// bad input throws the same messages and changes nothing.
+#[wasm_bindgen_test]
+fn rgba_with_depth_png_matches_push_frame() {
+    let (config, frames, _) = synthetic_sequence();
+    let (w, h) = (frames[0].width as u32, frames[0].height as u32);
+    let depth_png = |f: &RawFrame| {
+        let depth = image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, f.depth.clone())
+            .expect("depth");
+        png(image::DynamicImage::ImageLuma16(depth))
+    };
+    let colour_png = |f: &RawFrame| {
+        let rgba = image::RgbaImage::from_raw(w, h, f.rgba.clone()).expect("rgba");
+        png(image::DynamicImage::ImageRgba8(rgba))
+    };
+    let mut by_png = Slam::new(config_object(&config)).expect("valid config");
+    let mut by_pixels = Slam::new(config_object(&config)).expect("valid config");
+    for f in frames.iter().take(5) {
+        let d = depth_png(f);
+        let a = by_png
+            .push_frame(&colour_png(f), &d, f.timestamp)
+            .map_err(message)
+            .expect("PNG frame");
+        let b = by_pixels
+            .push_rgba_depth_png(w, h, &f.rgba, &d, f.timestamp)
+            .map_err(message)
+            .expect("pixels + depth PNG frame");
+        assert_eq!(text(&a, "verdict"), text(&b, "verdict"));
+        let timings = get(&b, "timings");
+        assert!(num(&timings, "decode") >= 0.0);
+    }
+    assert_eq!(trajectory_of(&by_png), trajectory_of(&by_pixels));
+    assert_eq!(by_png.surfel_count(), by_pixels.surfel_count());
+    assert_eq!(
+        by_png.pipeline().map().colours,
+        by_pixels.pipeline().map().colours
+    );
+
+    let f = &frames[5];
+    let d = depth_png(f);
+    let small = png(image::DynamicImage::ImageLuma16(image::ImageBuffer::new(
+        8, 8,
+    )));
+    let depth8 = png(image::DynamicImage::ImageLuma8(image::GrayImage::new(w, h)));
+    let rgba_small = vec![0_u8; 4 * 8 * 8];
+    /// (what, width, height, rgba, depth PNG, expected message part)
+    type Case<'a> = (&'a str, u32, u32, &'a [u8], &'a [u8], &'a str);
+    let cases: [Case; 6] = [
+        (
+            "short rgba",
+            w,
+            h,
+            &f.rgba[..10],
+            &d,
+            "colour buffer has 10 values",
+        ),
+        (
+            "garbage depth",
+            w,
+            h,
+            &f.rgba,
+            b"not a PNG",
+            "depth image could not be decoded",
+        ),
+        ("8-bit depth", w, h, &f.rgba, &depth8, "16-bit"),
+        ("size mismatch", w, h, &f.rgba, &small, "but depth is 8x8"),
+        (
+            "frame of another size",
+            8,
+            8,
+            &rgba_small,
+            &small,
+            "frame is 8x8 but the sequence is",
+        ),
+        ("zero size", 0, h, &[], &d, "image size 0x"),
+    ];
+    for (what, width, height, rgba, depth, expected) in cases {
+        let err = by_pixels
+            .push_rgba_depth_png(width, height, rgba, depth, 1.0)
+            .map(|_| ())
+            .map_err(message)
+            .expect_err(what);
+        console_log!("{what}: {err}");
+        assert!(err.contains(expected), "{what}: {err:?} lacks {expected:?}");
+    }
+    let err = by_pixels
+        .push_rgba_depth_png(w, h, &f.rgba, &d, f64::INFINITY)
+        .map(|_| ())
+        .map_err(message)
+        .expect_err("infinite timestamp");
+    assert!(err.contains("timestamp"), "{err}");
+    assert_eq!(by_pixels.frames(), 5, "failed pushes change nothing");
+    by_pixels
+        .push_rgba_depth_png(w, h, &f.rgba, &d, f.timestamp)
+        .map_err(message)
+        .expect("still works");
+}
+
 #[wasm_bindgen_test]
 fn bad_configs_throw_clear_errors() {
     let obj = |pairs: &[(&str, JsValue)]| -> JsValue {

@@ -26,6 +26,10 @@ const status = {
   fpsAverage: 0, // frames per second from the first to the latest frame of this run
   msPerFrame: 0, // wasm time per frame (decode + preprocess + track + fuse + predict)
   stageMedianMs: null, // median ms per stage and in total over the frames since the last reset
+  workerMedianMs: null, // median ms of the worker's steps per frame (read, push, copy, ate, gap, wall)
+  colourDecoder: null, // who decoded the last frame's colour image: 'browser' (the worker) or 'wasm'
+  frameReader: false, // frames are read and their colour decoded by a worker of their own (www/frame-reader.js)
+  framesColourDecodedInBrowser: 0, // since the last reset
   playing: false,
   done: false,
   frameIndex: -1,
@@ -105,8 +109,15 @@ function syncStatus() {
   status.fps = Number(stats.fps.toFixed(2));
   status.msPerFrame = Number(stats.msPerFrame.toFixed(2));
   status.stageMedianMs = stats.stageMedians();
+  status.workerMedianMs = stats.workerMedians();
   status.frameIndex = stats.frameIndex;
   status.changedSurfels = stats.changed ?? 0;
+}
+
+function noteColourDecoder(msg) {
+  if (!msg.colourDecoder) return;
+  status.colourDecoder = msg.colourDecoder;
+  if (msg.colourDecoder === 'browser') status.framesColourDecodedInBrowser++;
 }
 
 function countRunFrame(msg) {
@@ -121,6 +132,8 @@ function countRunFrame(msg) {
 // ?threads=0 forces the single-threaded SIMD module (for comparisons).
 const workerUrl = new URL('./worker.js', import.meta.url);
 if (new URLSearchParams(location.search).get('threads') === '0') workerUrl.searchParams.set('threads', '0');
+// ?colour=wasm decodes colour images in wasm instead of the browser (for comparisons).
+if (new URLSearchParams(location.search).get('colour') === 'wasm') workerUrl.searchParams.set('colour', 'wasm');
 const worker = new Worker(workerUrl, { type: 'module' });
 worker.onerror = (e) => {
   reportError(`the worker failed: ${e.message || 'could not start (is www/pkg/ built? run scripts/build.sh)'}`);
@@ -183,6 +196,8 @@ function clearMap() {
   syncStatus();
   status.done = false;
   status.fpsAverage = 0;
+  status.colourDecoder = null;
+  status.framesColourDecodedInBrowser = 0;
   run = { first: 0, frames: 0 };
   gtAnchored = false;
   views.clear();
@@ -209,6 +224,7 @@ const handlers = {
     status.ready = true;
     status.module = msg.module;
     status.threads = msg.threads;
+    status.frameReader = msg.frameReader === true;
     presets = msg.presets ?? [];
     fillPresetSelect();
     const label = msg.module === 'threads' ? `threaded wasm · ${msg.threads} threads` : `single-threaded SIMD wasm · ${msg.threads} thread`;
@@ -241,6 +257,7 @@ const handlers = {
     status.flowTracks = msg.flow?.tracks ? msg.flow.tracks.length / 4 : 0;
     stats.onFrame(msg);
     countRunFrame(msg);
+    noteColourDecoder(msg);
     if (renderer) {
       renderer.updateSurfels(msg.surfels);
       if (msg.refresh) renderer.updateSurfels(msg.refresh);
@@ -248,7 +265,7 @@ const handlers = {
       renderer.setCameraPose(msg.result.pose, intr);
       anchorGroundTruth(msg.timestamp, msg.result.pose);
     }
-    views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow);
+    views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow, msg.input.colourPreview);
     if (msg.done) status.done = true;
     syncStatus();
     // How far the display trails the worker (main thread busy drawing or uploading).
@@ -260,7 +277,8 @@ const handlers = {
 
   'frame-error'(msg) {
     stats.onFailedFrame(msg);
-    if (msg.input) views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || 5000);
+    noteColourDecoder(msg);
+    if (msg.input) views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || 5000, null, msg.input.colourPreview);
     reportError(`frame ${msg.index + 1} skipped — ${msg.message}`);
     syncStatus();
   },

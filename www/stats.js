@@ -3,7 +3,17 @@
 // wasm module's ateTum when the sequence has ground truth).
 
 const STAGES = ['decode', 'preprocess', 'track', 'fuse', 'predict', 'total'];
+// The worker's own time per frame around the wasm call (see worker.js processNext).
+const WORKER_STEPS = ['read', 'push', 'copy', 'ate', 'gap', 'wall'];
 const WINDOW = 15;
+
+function medians(keys, history) {
+  const median = (v) => {
+    const sorted = [...v].sort((a, b) => a - b);
+    return sorted.length ? sorted[Math.floor(sorted.length / 2)] : 0;
+  };
+  return Object.fromEntries(keys.map((k) => [k, Number(median(history[k]).toFixed(2))]));
+}
 
 export class Stats {
   constructor(table) {
@@ -28,6 +38,7 @@ export class Stats {
     this.msPerFrame = 0;
     this.stageMs = Object.fromEntries(STAGES.map((s) => [s, 0]));
     this.stageHistory = Object.fromEntries(STAGES.map((s) => [s, []])); // every frame since reset
+    this.workerHistory = Object.fromEntries(WORKER_STEPS.map((s) => [s, []]));
     this.wallMs = 0;
     this.frameIndex = -1;
     this.frameCount = 0;
@@ -63,6 +74,7 @@ export class Stats {
       this.stageMs[s] = this.recent.reduce((acc, f) => acc + (Number(f.timings[s]) || 0), 0) / n;
       this.stageHistory[s].push(Number(r.timings?.[s]) || 0);
     }
+    for (const s of WORKER_STEPS) this.workerHistory[s].push(Number(msg.timing?.[s]) || 0);
     this.wallMs = this.recent.reduce((acc, f) => acc + f.wall, 0) / n;
     this.msPerFrame = this.stageMs.total || this.wallMs;
     this.render();
@@ -77,11 +89,12 @@ export class Stats {
 
   /** Median ms of each stage over every frame since the last reset. */
   stageMedians() {
-    const median = (v) => {
-      const sorted = [...v].sort((a, b) => a - b);
-      return sorted.length ? sorted[Math.floor(sorted.length / 2)] : 0;
-    };
-    return Object.fromEntries(STAGES.map((s) => [s, Number(median(this.stageHistory[s]).toFixed(2))]));
+    return medians(STAGES, this.stageHistory);
+  }
+
+  /** Median ms of each step of the worker's frame loop (read, push, copy, ate, gap, wall) since the last reset. */
+  workerMedians() {
+    return medians(WORKER_STEPS, this.workerHistory);
   }
 
   /** Paused: the next run's frame rate starts afresh (the last value stays shown). */

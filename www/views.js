@@ -1,7 +1,9 @@
 // Small live views of the current input: the colour image and the depth image
 // colour-mapped (near = warm, far = cool, no measurement = black).
 //
-// Both are decoded by the browser (createImageBitmap, off the main thread).
+// Both are decoded by the browser (createImageBitmap, off the main thread);
+// the colour view usually draws the thumbnail the frame reader made while
+// decoding the frame for SLAM (no second decode).
 // A 16-bit depth PNG decodes to 8 bits per channel (the high byte), so the
 // depth view has a resolution of 256 raw units (~5 cm at 5000 units/m):
 // enough for a preview; the SLAM itself reads the full 16 bits in wasm.
@@ -52,18 +54,24 @@ export class InputViews {
     if (this.depthLabel) this.depthLabel.textContent = `depth ${lo.toFixed(1)}-${hi.toFixed(1)} m`;
   }
 
-  /** Shows one frame's input (PNG bytes). Drops frames while a decode is in flight. */
-  show(colourBytes, depthBytes, depthScale = 5000, flow = null) {
-    this.pending = { colourBytes, depthBytes, depthScale: depthScale || 5000, flow };
+  /**
+   * Shows one frame's input (PNG bytes; `colourPreview`, when given, an
+   * ImageBitmap of the colour image that is drawn instead of decoding the
+   * bytes again). Drops frames while a decode is in flight.
+   */
+  show(colourBytes, depthBytes, depthScale = 5000, flow = null, colourPreview = null) {
+    this.pending?.colourPreview?.close(); // dropped: free its pixels now
+    this.pending = { colourBytes, depthBytes, depthScale: depthScale || 5000, flow, colourPreview };
     if (!this.busy) this.drain();
   }
 
   async drain() {
     this.busy = true;
     while (this.pending) {
-      const { colourBytes, depthBytes, depthScale, flow } = this.pending;
+      const { colourBytes, depthBytes, depthScale, flow, colourPreview } = this.pending;
       this.pending = null;
-      await Promise.all([this.drawColour(colourBytes), this.drawDepth(depthBytes, depthScale)]);
+      const colour = colourPreview ? this.drawPreview(colourPreview) : this.drawColour(colourBytes);
+      await Promise.all([colour, this.drawDepth(depthBytes, depthScale)]);
       if (flow) this.drawFlow(flow);
     }
     this.busy = false;
@@ -87,6 +95,11 @@ export class InputViews {
     ctx.stroke();
     for (let i = 0; i + 3 < tracks.length; i += 4) ctx.fillRect(tracks[i + 2] * sx - 1, tracks[i + 3] * sy - 1, 2, 2);
     ctx.restore();
+  }
+
+  drawPreview(bitmap) {
+    this.colourCtx.drawImage(bitmap, 0, 0, VIEW_W, VIEW_H);
+    bitmap.close();
   }
 
   async drawColour(bytes) {

@@ -1,6 +1,12 @@
 // Web Worker: owns the wasm module and the Slam instance; runs the frame loop
-// (read files -> pushFrame: decode, track, fuse) and posts each result with a
-// copy of the changed surfel range (transferred, not cloned).
+// (read files, decode the colour image in the browser -> pushRgbaDepthPng:
+// decode depth, track, fuse) and posts each result with a copy of the changed
+// surfel range (transferred, not cloned). The next frames' files are read and
+// their colour decoded by a worker of this worker's (frame-reader.js) while
+// wasm works on the current one; where it cannot start, on this thread.
+// A colour image the browser cannot decode (or not exactly: translucent or
+// 16-bit) goes to pushFrame, which decodes both images in wasm and names the
+// problem when there is one.
 //
 // Messages in:  {type: 'load', name, entries, autoplay}, 'play', 'pause',
 //               'step', 'reset', {type: 'config', config}, 'exportPly',
@@ -8,6 +14,7 @@
 // Messages out: 'ready', 'sequence', 'frame', 'frame-error', 'load-error',
 //               'state', 'ate', 'export', 'fatal'.
 import { SequenceSource } from './sequence.js';
+import { readAndDecodeColour } from './colour-decode.js';
 
 let wasm = null;
 let moduleKind = null;
@@ -19,7 +26,8 @@ let seqCounter = 0;
 let next = 0; // index of the next frame to process
 let playing = false;
 let pumping = false;
-let prefetch = null; // { key, promise }
+const prefetch = new Map(); // `${seq.id}:${index}` -> promise of the frame's bytes and decoded colour
+const PREFETCH_FRAMES = 3; // frames read and decoded ahead of the one in wasm
 let framesOk = 0;
 let refreshCursor = 0; // start of the next rolling refresh window (surfel index)
 const REFRESH_SURFELS = 65536;
@@ -68,7 +76,8 @@ async function initModule() {
   } catch (e) {
     notes.push(`presets(): ${errorText(e)}`);
   }
-  post({ type: 'ready', module: moduleKind, threads, presets, notes });
+  startReader();
+  post({ type: 'ready', module: moduleKind, threads, presets, notes, frameReader: reader !== null });
 }
 
 /** Deep copy into plain JS values (wasm-bindgen may hand out Maps or class objects). */
@@ -91,11 +100,11 @@ const presetName = (p) => (typeof p === 'string' ? p : p?.name ?? null);
 let flow = null;
 let flowEnabled = false;
 
-function flowTracks(colour) {
+function flowTracks(colour, decoded) {
   if (!flowEnabled) return null;
   try {
     flow ??= new wasm.OpticalFlow(300);
-    const tracks = flow.pushPng(colour);
+    const tracks = decoded ? flow.pushRgba(decoded.width, decoded.height, decoded.rgba) : flow.pushPng(colour);
     const [width, height] = flow.imageSize;
     return { tracks, width, height };
   } catch {
@@ -110,7 +119,7 @@ function createSlam(newConfig) {
   config = newConfig;
   next = 0;
   framesOk = 0;
-  prefetch = null;
+  prefetch.clear();
 }
 
 function reportState(extra = {}) {
@@ -162,6 +171,7 @@ async function load({ name, entries, autoplay }) {
     frames: parsed.frames,
     gtTum: parsed.groundTruthTum || (groundTruth.length ? groundTruth.map((r) => r.join(' ')).join('\n') + '\n' : null),
   };
+  readerSource(seq.id, entries);
   post({
     type: 'sequence',
     name,
@@ -179,21 +189,80 @@ async function load({ name, entries, autoplay }) {
 
 // ---- the frame loop -----------------------------------------------------------
 
-function readFrame(index) {
-  const key = `${seq.id}:${index}`;
-  if (prefetch && prefetch.key === key) return prefetch.promise;
-  const f = seq.frames[index];
-  const promise = Promise.all([seq.source.read(f.colour), seq.source.read(f.depth)]);
+// ---- reading frames: in frame-reader.js's worker when it runs ----------------
+
+let reader = null; // the frame reader's Worker; null: read on this thread
+// ?colour=wasm in the page URL: wasm decodes colour too (pushFrame), for comparisons.
+const browserColour = new URL(self.location.href).searchParams.get('colour') !== 'wasm';
+const readerWaiting = new Map(); // `${seq.id}:${index}` -> {resolve, reject, source, frame}
+
+function startReader() {
+  if (typeof Worker !== 'function') return;
+  try {
+    reader = new Worker(new URL('./frame-reader.js', import.meta.url), { type: 'module' });
+  } catch {
+    reader = null;
+    return;
+  }
+  reader.onmessage = ({ data }) => {
+    const key = `${data.id}:${data.index}`;
+    const waiting = readerWaiting.get(key);
+    if (!waiting) return; // the sequence was replaced or reset meanwhile
+    readerWaiting.delete(key);
+    if (data.error !== undefined) waiting.reject(new Error(data.error));
+    else waiting.resolve({ colourBuf: data.colourBuf, depthBuf: data.depthBuf, decoded: data.decoded });
+  };
+  reader.onerror = (e) => {
+    // The reader cannot run (or died): read on this thread from now on.
+    e.preventDefault?.();
+    reader?.terminate();
+    reader = null;
+    for (const [key, w] of readerWaiting) {
+      readerWaiting.delete(key);
+      readAndDecodeColour(w.source, w.frame, browserColour).then(w.resolve, w.reject);
+    }
+  };
+}
+
+/** Tells the reader about a new sequence (before any read of it). */
+function readerSource(id, entries) {
+  readerWaiting.clear();
+  reader?.postMessage({ type: 'source', id, entries });
+}
+
+function loadFrame(index) {
+  const frame = seq.frames[index];
+  let promise;
+  if (reader) {
+    const key = `${seq.id}:${index}`;
+    const source = seq.source;
+    promise = new Promise((resolve, reject) => readerWaiting.set(key, { resolve, reject, source, frame }));
+    const { colour, depth } = frame;
+    reader.postMessage({ type: 'read', id: seq.id, index, colour, depth, decode: browserColour });
+  } else {
+    promise = readAndDecodeColour(seq.source, frame, browserColour);
+  }
   promise.catch(() => {}); // handled by whoever awaits it
   return promise;
 }
 
-function startPrefetch(index) {
-  if (!seq || index >= seq.frames.length) return;
+function readFrame(index) {
   const key = `${seq.id}:${index}`;
-  if (prefetch && prefetch.key === key) return;
-  prefetch = null;
-  prefetch = { key, promise: readFrame(index) };
+  const ahead = prefetch.get(key);
+  if (ahead) {
+    prefetch.delete(key);
+    return ahead;
+  }
+  return loadFrame(index);
+}
+
+/** Starts reading (and decoding) the frames after `index` that are not under way yet. */
+function startPrefetch(index) {
+  if (!seq) return;
+  for (let i = index + 1; i <= index + PREFETCH_FRAMES && i < seq.frames.length; i++) {
+    const key = `${seq.id}:${i}`;
+    if (!prefetch.has(key)) prefetch.set(key, loadFrame(i));
+  }
 }
 
 /** Names the file concerned in an error from pushFrame. */
@@ -210,25 +279,32 @@ function describeFrameError(frame, message) {
   return `${frame.colour} + ${frame.depth}: ${message}`;
 }
 
+let lastFrameEnd = null; // performance.now() when the last frame was posted (null: not playing)
+
 async function processNext() {
   if (!seq || !slam || next >= seq.frames.length) return;
   const index = next++;
   const frame = seq.frames[index];
   const t0 = performance.now();
-  let colourBuf, depthBuf;
+  const reading = readFrame(index);
+  startPrefetch(index);
+  let colourBuf, depthBuf, decoded;
   try {
-    [colourBuf, depthBuf] = await readFrame(index);
+    ({ colourBuf, depthBuf, decoded } = await reading);
   } catch (e) {
     post({ type: 'frame-error', index, message: errorText(e), frameCount: seq.frames.length });
     return;
   }
-  startPrefetch(index + 1);
   const tRead = performance.now();
   const colour = new Uint8Array(colourBuf);
   const depth = new Uint8Array(depthBuf);
+  const colourDecoder = decoded ? 'browser' : 'wasm';
   let r;
   try {
-    r = toPlain(slam.pushFrame(colour, depth, frame.timestamp));
+    const report = decoded
+      ? slam.pushRgbaDepthPng(decoded.width, decoded.height, decoded.rgba, depth, frame.timestamp)
+      : slam.pushFrame(colour, depth, frame.timestamp);
+    r = toPlain(report);
   } catch (e) {
     post(
       {
@@ -236,13 +312,14 @@ async function processNext() {
         index,
         message: describeFrameError(frame, errorText(e)),
         frameCount: seq.frames.length,
-        input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null },
+        colourDecoder,
+        input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null, colourPreview: decoded?.preview ?? null },
       },
-      [colourBuf, depthBuf],
+      decoded?.preview ? [colourBuf, depthBuf, decoded.preview] : [colourBuf, depthBuf],
     );
     return;
   }
-  const flowOverlay = flowTracks(colour);
+  const flowOverlay = flowTracks(colour, decoded);
   const tPush = performance.now();
   framesOk++;
 
@@ -290,6 +367,7 @@ async function processNext() {
       ate = null; // too few associated poses yet
     }
   }
+  const tAte = performance.now();
   post(
     {
       type: 'frame',
@@ -299,6 +377,7 @@ async function processNext() {
       colourPath: frame.colour,
       depthPath: frame.depth,
       result: r,
+      colourDecoder,
       surfels,
       refresh,
       ate,
@@ -306,10 +385,13 @@ async function processNext() {
         read: tRead - t0,
         push: tPush - tRead,
         copy: tCopy - tPush,
+        ate: tAte - tCopy,
+        gap: lastFrameEnd === null ? 0 : t0 - lastFrameEnd, // between frames: the loop's own yield
         wall: performance.now() - t0,
         doneAt: performance.now() + performance.timeOrigin, // fps is measured where the work happens
       },
-      input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null },
+      // The thumbnail the browser made while decoding (the page need not decode the colour again).
+      input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null, colourPreview: decoded?.preview ?? null },
       flow: flowOverlay,
       done: last,
     },
@@ -326,15 +408,28 @@ async function processNext() {
       refresh.confidences.buffer,
       colourBuf,
       depthBuf,
+      ...(decoded?.preview ? [decoded.preview] : []),
     ],
   );
+  lastFrameEnd = playing ? performance.now() : null;
 }
 
-const tick = () => new Promise((resolve) => setTimeout(resolve, 0));
+// Lets queued messages (pause, step, reset) in between frames. A message to
+// ourselves rather than setTimeout(0), which browsers clamp to 4 ms once
+// timers nest (each frame is scheduled from the last one's).
+const yieldChannel = new MessageChannel();
+const yielded = [];
+yieldChannel.port1.onmessage = () => yielded.shift()?.();
+const tick = () =>
+  new Promise((resolve) => {
+    yielded.push(resolve);
+    yieldChannel.port2.postMessage(null);
+  });
 
 async function pump() {
   if (pumping) return;
   pumping = true;
+  lastFrameEnd = null;
   try {
     while (playing) {
       if (!seq || next >= seq.frames.length) {
@@ -355,7 +450,7 @@ function resetMap() {
   slam.reset();
   next = 0;
   framesOk = 0;
-  prefetch = null;
+  prefetch.clear();
 }
 
 // ---- messages -----------------------------------------------------------------

@@ -66,20 +66,23 @@ impl OpticalFlow {
     pub fn push_png(&mut self, colour: &[u8]) -> Result<Float32Array, JsError> {
         let (w, h, rgb) =
             crate::frame::decode_colour(colour).map_err(|e| JsError::new(&e.to_string()))?;
-        std::mem::swap(&mut self.first, &mut self.second);
-        grey_into(&rgb, w * h, &mut self.second)?;
-        let previous = std::mem::replace(&mut self.kept, (w, h));
-        if previous != (w, h) {
-            return Ok(Float32Array::new_with_length(0));
-        }
-        let tracks = self
-            .flow
-            .track(&self.first, &self.second, w, h)
-            .map_err(|e| JsError::new(&e.to_string()))?;
-        Ok(flatten(tracks))
+        self.push_pixels(w, h, &rgb)
     }
 
-    /// Width and height of the last image given to `pushPng`, pixels (0 before).
+    /// As `pushPng`, for an image decoded by the caller: `rgba` is RGBA8 (or
+    /// RGB8), `width` x `height`. Throws on a wrong buffer length.
+    #[wasm_bindgen(js_name = pushRgba)]
+    pub fn push_rgba(
+        &mut self,
+        width: u32,
+        height: u32,
+        rgba: &[u8],
+    ) -> Result<Float32Array, JsError> {
+        self.push_pixels(width as usize, height as usize, rgba)
+    }
+
+    /// Width and height of the last image given to `pushPng` or `pushRgba`,
+    /// pixels (0 before).
     #[wasm_bindgen(getter, js_name = imageSize, unchecked_return_type = "[number, number]")]
     #[must_use]
     pub fn image_size(&self) -> js_sys::Array {
@@ -105,6 +108,28 @@ impl OpticalFlow {
             .ok_or_else(|| JsError::new("image size overflows"))?;
         grey_into(first, count, &mut self.first)?;
         grey_into(second, count, &mut self.second)?;
+        let tracks = self
+            .flow
+            .track(&self.first, &self.second, w, h)
+            .map_err(|e| JsError::new(&e.to_string()))?;
+        Ok(flatten(tracks))
+    }
+}
+
+impl OpticalFlow {
+    /// Makes the kept image the first and `pixels` (RGBA8 or RGB8, `w` x `h`)
+    /// the second, then tracks (nothing for the first image or after a size
+    /// change). A wrong length keeps the previous image.
+    fn push_pixels(&mut self, w: usize, h: usize, pixels: &[u8]) -> Result<Float32Array, JsError> {
+        let count = w
+            .checked_mul(h)
+            .ok_or_else(|| JsError::new("image size overflows"))?;
+        grey_into(pixels, count, &mut self.first)?;
+        std::mem::swap(&mut self.first, &mut self.second);
+        let previous = std::mem::replace(&mut self.kept, (w, h));
+        if previous != (w, h) {
+            return Ok(Float32Array::new_with_length(0));
+        }
         let tracks = self
             .flow
             .track(&self.first, &self.second, w, h)

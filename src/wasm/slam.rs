@@ -1,6 +1,7 @@
 //! The `Slam` class: one [`Pipeline`] driven from JavaScript.
 //!
-//! Frames go in as PNG bytes (decoded inside wasm) or raw buffers; each push
+//! Frames go in as PNG bytes (decoded inside wasm), as colour pixels decoded
+//! by the browser with a depth PNG, or as raw buffers; each push
 //! returns a report object. The surfel map comes out as zero-copy typed-array
 //! views into wasm memory (see [`Slam::positions`] for when they are valid).
 
@@ -99,6 +100,29 @@ impl Slam {
         let report = self
             .pipeline
             .push_png(colour, depth, timestamp)
+            .map_err(|e| js_error(&e))?;
+        Ok(report_to_js(&report))
+    }
+
+    /// Processes a frame whose colour image was decoded by the caller (the
+    /// page decodes it in the browser: `rgba` is RGBA8 from `getImageData`,
+    /// or RGB8, `width` x `height`) with a 16-bit depth PNG, decoded here
+    /// (browsers reduce 16-bit PNGs to 8 bits). Throws (and changes nothing)
+    /// on a wrong buffer length, a colour/depth size mismatch or bad depth
+    /// bytes, with the messages of `pushFrame`.
+    #[wasm_bindgen(js_name = pushRgbaDepthPng, unchecked_return_type = "FrameReport")]
+    pub fn push_rgba_depth_png(
+        &mut self,
+        width: u32,
+        height: u32,
+        rgba: &[u8],
+        #[wasm_bindgen(js_name = "depthPng")] depth_png: &[u8],
+        timestamp: f64,
+    ) -> Result<JsValue, JsError> {
+        check_timestamp(timestamp)?;
+        let report = self
+            .pipeline
+            .push_pixels_and_depth_png(width as usize, height as usize, rgba, depth_png, timestamp)
             .map_err(|e| js_error(&e))?;
         Ok(report_to_js(&report))
     }

@@ -1,4 +1,4 @@
-// A minimal PNG encoder for test inputs (8/16-bit grey or RGB, one fill
+// A minimal PNG encoder for test inputs (8/16-bit grey, RGB or RGBA, one fill
 // value; optionally a forged header size), shared by the Node and browser tests.
 import zlib from 'node:zlib';
 
@@ -14,7 +14,7 @@ function crc32(buf) {
 }
 
 /**
- * A PNG of `width` x `height`, `channels` (1 or 3) of `bitDepth` (8 or 16),
+ * A PNG of `width` x `height`, `channels` (1, 3 or 4) of `bitDepth` (8 or 16),
  * filled with `value`; `claim` = [w, h] forges the header's size instead.
  */
 export function encodePng(width, height, channels, bitDepth, value, claim = null) {
@@ -37,7 +37,7 @@ export function encodePng(width, height, channels, bitDepth, value, claim = null
   ihdr.writeUInt32BE(claim ? claim[0] : width, 0);
   ihdr.writeUInt32BE(claim ? claim[1] : height, 4);
   ihdr[8] = bitDepth;
-  ihdr[9] = channels === 3 ? 2 : 0;
+  ihdr[9] = { 1: 0, 3: 2, 4: 6 }[channels]; // grey, RGB, RGBA
   return new Uint8Array(
     Buffer.concat([Buffer.from([137, 80, 78, 71, 13, 10, 26, 10]), chunk('IHDR', ihdr), chunk('IDAT', zlib.deflateSync(raw)), chunk('IEND', Buffer.alloc(0))]),
   );
