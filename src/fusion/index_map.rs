@@ -84,7 +84,14 @@ pub struct IndexMap {
     pub height: usize,
     cells: Vec<AtomicU64>,
     confident: Vec<AtomicU64>,
+    /// Per surfel of the visited ranges: `(depth bits << 32) | cell` from the
+    /// first pass, `NOT_PROJECTED` when excluded or outside the image; the
+    /// second pass reads it instead of projecting again.
+    projected: Vec<AtomicU64>,
 }
+
+/// Marks a surfel the first pass did not put in any cell.
+const NOT_PROJECTED: u64 = u64::MAX;
 
 impl IndexMap {
     /// Allocates (or reuses) the buffer for an image of `k`'s size.
@@ -113,15 +120,24 @@ impl IndexMap {
         self.cells
             .par_iter()
             .for_each(|c| c.store(EMPTY, Ordering::Relaxed));
-        let cells = &self.cells;
+        if self.projected.len() < map.len() {
+            self.projected
+                .resize_with(map.len(), || AtomicU64::new(NOT_PROJECTED));
+        }
+        let (cells, projected) = (&self.cells, &self.projected);
         let include = &include;
         for_each_in(ranges, |i| {
-            if !include(i) {
-                return;
-            }
-            if let Some((z, cell)) = pixel_of(k, camera_from_world.point(map.positions[i])) {
-                cells[cell].fetch_min((u64::from(z.to_bits()) << 32) | i as u64, Ordering::Relaxed);
-            }
+            let entry = if include(i) {
+                pixel_of(k, camera_from_world.point(map.positions[i]))
+            } else {
+                None
+            };
+            let value = entry.map_or(NOT_PROJECTED, |(z, cell)| {
+                let depth_bits = u64::from(z.to_bits()) << 32;
+                cells[cell].fetch_min(depth_bits | i as u64, Ordering::Relaxed);
+                depth_bits | cell as u64
+            });
+            projected[i].store(value, Ordering::Relaxed);
         });
         let Some(band) = confidence_band_m else {
             return;
@@ -134,12 +150,12 @@ impl IndexMap {
             .for_each(|c| c.store(0, Ordering::Relaxed));
         let confident = &self.confident;
         for_each_in(ranges, |i| {
-            if !include(i) {
+            let entry = projected[i].load(Ordering::Relaxed);
+            if entry == NOT_PROJECTED {
                 return;
             }
-            let Some((z, cell)) = pixel_of(k, camera_from_world.point(map.positions[i])) else {
-                return;
-            };
+            let z = f32::from_bits((entry >> 32) as u32);
+            let cell = (entry & 0xffff_ffff) as usize;
             let nearest = f32::from_bits((cells[cell].load(Ordering::Relaxed) >> 32) as u32);
             if z <= nearest + band {
                 // Confidences are positive, so their bit patterns order like the values.
