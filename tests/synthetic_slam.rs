@@ -153,9 +153,9 @@ fn revisiting_the_same_views_does_not_grow_the_map() {
     // Kinect-like noise, played back and forth over 12 poses: after the first
     // passes the surfaces are mapped, so later passes must merge into the
     // map, not pile up duplicates that turn stable. Measured at 320x240:
-    // 38 k stable surfels after two passes, 58 k after eight, 154 k in all;
-    // without absorbing redundant surfels and with the 3-D cover test it was
-    // 52 k, 97 k and 305 k. Without noise the stable count is flat after
+    // 35 k stable surfels after two passes, 47 k after eight, 123 k in all;
+    // without absorbing redundant surfels, with the 3-D cover test and
+    // unstable surfels kept 20 frames it was 52 k, 97 k and 305 k. Without noise the stable count is flat after
     // three passes either way. (Noise here reaches 2.6 cm on the far wall.)
     let k = small_intrinsics();
     let scene = Scene::room();
@@ -199,7 +199,7 @@ fn revisiting_the_same_views_does_not_grow_the_map() {
         k.pixel_count()
     );
     assert!(
-        (last as f64) < 1.7 * after_two_passes as f64,
+        (last as f64) < 1.5 * after_two_passes as f64,
         "stable surfels grew from {after_two_passes} after two passes to {last} after {passes}"
     );
     assert!(slam.map().all_finite());

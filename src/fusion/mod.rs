@@ -29,7 +29,11 @@ pub struct FusionConfig {
     pub confidence_sigma: f32,
     /// Confidence at which a surfel becomes stable (used for prediction).
     pub stable_confidence: f32,
-    /// Unstable surfels older than this many frames are removed.
+    /// Unstable surfels older than this many frames are removed. The
+    /// published ~20 was measured against 10 (with redundant surfels
+    /// absorbed): TUM fr3/teddy 0.79 vs 0.70 cm ATE over its 193 frames and
+    /// 1.14 vs 0.97 cm over 1500 played back and forth, with 472 k vs 346 k
+    /// surfels; ICL-NUIM kt0 0.012 cm both ways.
     pub unstable_max_age: u32,
     /// Removal runs every this many frames: removing compacts the arrays and
     /// shifts every later surfel, which a renderer must re-upload, so it is
@@ -52,7 +56,7 @@ impl Default for FusionConfig {
             normal_gate_deg: 20.0,
             confidence_sigma: 0.6,
             stable_confidence: 5.0,
-            unstable_max_age: 20,
+            unstable_max_age: 10,
             cleanup_interval_frames: 10,
             warmup_frames: 10,
             max_radius_m: 0.05,
