@@ -1,4 +1,5 @@
-//! Removal of surfels that stayed unstable too long (outliers, moving objects).
+//! Removal of surfels that stayed unstable too long (outliers, moving
+//! objects), and of surfels absorbed into others.
 
 use super::{FusionConfig, SurfelMap};
 
@@ -6,10 +7,11 @@ use super::{FusionConfig, SurfelMap};
 /// more than `unstable_max_age` frames before `frame`, and surfels absorbed
 /// into others (negative confidence). Returns how many went.
 ///
-/// Confidence never decreases and surfels are stored in creation order, so
-/// the surfels old enough at the previous call were settled then (removed,
-/// or stable for good): only the younger tail is visited, and a call costs
-/// what a few frames added, not the size of the map.
+/// Confidence only decreases when a surfel is absorbed, and surfels are
+/// stored in creation order, so the surfels old enough at the previous call
+/// were settled then (removed, or stable until absorbed): only the younger
+/// tail is visited, plus the map from the first surfel absorbed since (a
+/// stable one can sit anywhere).
 pub fn remove_unstable(map: &mut SurfelMap, config: &FusionConfig, frame: u32) -> usize {
     let before = map.len();
     let settled_before = map

@@ -36,8 +36,8 @@ pub struct FusionStats {
     pub covered: usize,
     /// New surfels not added because the map was at `max_surfels`.
     pub skipped: usize,
-    /// Unstable surfels merged into a more confident surfel whose disk
-    /// covers them; they are removed at the next cleanup.
+    /// Surfels merged into a more confident surfel whose disk holds their
+    /// centre; they are removed at the next cleanup.
     pub absorbed: usize,
 }
 
