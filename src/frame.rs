@@ -394,8 +394,16 @@ impl RgbdFrame {
             || decode_depth_into(depth, settings, depth_m, depth_scratch),
             || decode_colour_into(colour, rgb, colour_scratch),
         );
-        let (dw, dh) = depth_size?;
-        let (cw, ch) = colour_size?;
+        let depth_size = depth_size?;
+        self.set_size(colour_size?, depth_size)
+    }
+
+    /// Records the frame's size once the colour and depth images agree on it.
+    fn set_size(
+        &mut self,
+        (cw, ch): (usize, usize),
+        (dw, dh): (usize, usize),
+    ) -> Result<(), FrameError> {
         if (cw, ch) != (dw, dh) {
             return Err(FrameError::SizeMismatch {
                 colour_width: cw,
@@ -476,18 +484,8 @@ impl RgbdFrame {
         settings.validate()?;
         check_dimensions(width, height)?;
         rgb_from_pixels(colour, width * height, &mut self.rgb)?;
-        let (dw, dh) = decode_depth_into(depth, settings, &mut self.depth_m, &mut scratch.depth)?;
-        if (width, height) != (dw, dh) {
-            return Err(FrameError::SizeMismatch {
-                colour_width: width,
-                colour_height: height,
-                depth_width: dw,
-                depth_height: dh,
-            });
-        }
-        self.width = dw;
-        self.height = dh;
-        Ok(())
+        let depth_size = decode_depth_into(depth, settings, &mut self.depth_m, &mut scratch.depth)?;
+        self.set_size((width, height), depth_size)
     }
 
     /// Checks what a frame built by hand (its fields are public) could get
