@@ -119,7 +119,7 @@ fn stages(c: &mut Criterion) {
 
     let fusion = f.config.fusion;
     let far = f.config.depth.max_m;
-    let mut prediction = Prediction::default();
+    let mut prediction = Prediction::new(true);
     let map = f.slam.map();
     let include = |i| fusion.predicts(map, i, MAP_FRAMES as u32);
     prediction.render(map, &f.pose, &k, (fusion.depth_gate_m, far), include);

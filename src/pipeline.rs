@@ -12,7 +12,7 @@ use crate::fusion::{
 };
 use crate::preprocess::{half_resolution_into, FramePyramid, PreprocessConfig};
 use crate::se3;
-use crate::track::{track, LostReason, TrackerConfig, TrackerWorkspace};
+use crate::track::{track, LostReason, TrackerConfig, TrackerMode, TrackerWorkspace};
 use glam::DAffine3;
 use thiserror::Error;
 
@@ -256,15 +256,19 @@ impl Pipeline {
     /// Creates an empty pipeline after validating `config`.
     pub fn new(config: SlamConfig) -> Result<Self, PipelineError> {
         config.validate()?;
+        // Grey levels are read only by the photometric term.
+        let photometric = config.tracker.mode != TrackerMode::Icp;
+        let mut pyramid = FramePyramid::new(&config.working_intrinsics(), &config.preprocess);
+        pyramid.with_intensity = photometric;
         Ok(Self {
-            pyramid: FramePyramid::new(&config.working_intrinsics(), &config.preprocess),
+            pyramid,
             half_frame: RgbdFrame::default(),
             decoded: RgbdFrame::default(),
             scratch: DecodeScratch::default(),
             recovery: recovery_tracker(&config.tracker),
             config,
             map: SurfelMap::default(),
-            prediction: Prediction::default(),
+            prediction: Prediction::new(photometric),
             integrator: Integrator::default(),
             tracker: TrackerWorkspace::default(),
             trajectory: Vec::new(),

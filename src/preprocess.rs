@@ -76,6 +76,9 @@ pub struct FramePyramid {
     taps: Vec<(isize, isize, f32)>,
     /// Bilateral weight sums, full resolution.
     weights: Vec<f32>,
+    /// Whether `build` fills the levels' `intensity` (only the photometric
+    /// term reads it). On unless turned off.
+    pub with_intensity: bool,
 }
 
 impl FramePyramid {
@@ -112,6 +115,7 @@ impl FramePyramid {
             rgb: vec![0; 3 * n],
             taps,
             weights: vec![0.0; n],
+            with_intensity: true,
         }
     }
 
@@ -136,14 +140,17 @@ impl FramePyramid {
             } else {
                 level0.depth.copy_from_slice(&frame.depth_m);
             }
-            level0
-                .intensity
-                .par_iter_mut()
-                .zip(frame.rgb.par_chunks_exact(3))
-                .for_each(|(i, c)| {
-                    *i =
-                        0.299 * f32::from(c[0]) + 0.587 * f32::from(c[1]) + 0.114 * f32::from(c[2]);
-                });
+            if self.with_intensity {
+                level0
+                    .intensity
+                    .par_iter_mut()
+                    .zip(frame.rgb.par_chunks_exact(3))
+                    .for_each(|(i, c)| {
+                        *i = 0.299 * f32::from(c[0])
+                            + 0.587 * f32::from(c[1])
+                            + 0.114 * f32::from(c[2]);
+                    });
+            }
         }
         for l in 1..self.levels.len() {
             let (fine, coarse) = self.levels.split_at_mut(l);
@@ -158,7 +165,9 @@ impl FramePyramid {
                 cw,
                 3.0 * config.sigma_depth_m,
             );
-            downsample_mean(&fine.intensity, fw, &mut coarse.intensity, cw);
+            if self.with_intensity {
+                downsample_mean(&fine.intensity, fw, &mut coarse.intensity, cw);
+            }
         }
         for (l, level) in self.levels.iter_mut().enumerate() {
             let Some(k) = level.intrinsics else {

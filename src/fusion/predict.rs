@@ -20,8 +20,12 @@ pub struct Prediction {
     pub vertices: Vec<Vec3>,
     /// Surfel normals, world frame; `ZERO` where no surfel.
     pub normals: Vec<Vec3>,
-    /// Surfel grey level in 0..255 (0 where no surfel).
+    /// Surfel grey level in 0..255 (0 where no surfel); filled only by a
+    /// prediction made with `Prediction::new(true)`.
     pub intensity: Vec<f32>,
+    /// Whether `render` fills `intensity` (only the photometric term reads
+    /// it; skipping it saves a random read of the map per pixel).
+    with_intensity: bool,
     /// Number of pixels holding a surfel.
     pub valid: usize,
     index: IndexMap,
@@ -29,6 +33,15 @@ pub struct Prediction {
 }
 
 impl Prediction {
+    /// An empty prediction; `with_intensity`: whether renders fill `intensity`.
+    #[must_use]
+    pub fn new(with_intensity: bool) -> Self {
+        Self {
+            with_intensity,
+            ..Self::default()
+        }
+    }
+
     /// Renders the surfels selected by `include` into the view `world_from_camera`
     /// up to depth `far_m`; per pixel, the most confident surfel within
     /// `depth_band_m` of the nearest.
@@ -43,7 +56,8 @@ impl Prediction {
         let n = k.pixel_count();
         self.vertices.resize(n, Vec3::ZERO);
         self.normals.resize(n, Vec3::ZERO);
-        self.intensity.resize(n, 0.0);
+        self.intensity
+            .resize(if self.with_intensity { n } else { 0 }, 0.0);
         self.index.resize(k);
         self.world_from_camera = *world_from_camera;
         self.intrinsics = Some(*k);
@@ -62,34 +76,33 @@ impl Prediction {
         );
         let w = k.width;
         let index = &self.index;
-        self.valid = self
+        let fill = |v: usize, vr: &mut [Vec3], nr: &mut [Vec3], ir: &mut [f32]| {
+            let mut count = 0;
+            for u in 0..w {
+                let surfel = index.surfel_at(u, v);
+                vr[u] = surfel.map_or(Vec3::ZERO, |i| map.positions[i]);
+                nr[u] = surfel.map_or(Vec3::ZERO, |i| map.normals[i]);
+                if let Some(grey) = ir.get_mut(u) {
+                    *grey = surfel.map_or(0.0, |i| {
+                        let c = map.colours[i];
+                        0.299 * f32::from(c[0]) + 0.587 * f32::from(c[1]) + 0.114 * f32::from(c[2])
+                    });
+                }
+                count += usize::from(surfel.is_some());
+            }
+            count
+        };
+        let rows = self
             .vertices
             .par_chunks_mut(w)
             .zip(self.normals.par_chunks_mut(w))
-            .zip(self.intensity.par_chunks_mut(w))
-            .enumerate()
-            .map(|(v, ((vr, nr), ir))| {
-                let mut count = 0;
-                for u in 0..w {
-                    match index.surfel_at(u, v) {
-                        Some(i) => {
-                            vr[u] = map.positions[i];
-                            nr[u] = map.normals[i];
-                            let c = map.colours[i];
-                            ir[u] = 0.299 * f32::from(c[0])
-                                + 0.587 * f32::from(c[1])
-                                + 0.114 * f32::from(c[2]);
-                            count += 1;
-                        }
-                        None => {
-                            vr[u] = Vec3::ZERO;
-                            nr[u] = Vec3::ZERO;
-                            ir[u] = 0.0;
-                        }
-                    }
-                }
-                count
-            })
-            .sum();
+            .enumerate();
+        self.valid = if self.with_intensity {
+            rows.zip(self.intensity.par_chunks_mut(w))
+                .map(|((v, (vr, nr)), ir)| fill(v, vr, nr, ir))
+                .sum()
+        } else {
+            rows.map(|(v, (vr, nr))| fill(v, vr, nr, &mut [])).sum()
+        };
     }
 }
