@@ -10,9 +10,10 @@ use crate::fusion::SurfelMap;
 /// Bytes per vertex: 6 floats, 3 uchars, 2 floats.
 const VERTEX_BYTES: usize = 6 * 4 + 3 + 2 * 4;
 
-/// Writes the map as a binary little-endian PLY file. If the map's arrays have
-/// different lengths (a corrupt map), only the surfels present in every array
-/// are written.
+/// Writes the map as a binary little-endian PLY file, without the surfels
+/// absorbed into others (negative confidence, awaiting removal). If the
+/// map's arrays have different lengths (a corrupt map), only the surfels
+/// present in every array are written.
 #[must_use]
 pub fn write_ply(map: &SurfelMap) -> Vec<u8> {
     let n = [
@@ -25,11 +26,13 @@ pub fn write_ply(map: &SurfelMap) -> Vec<u8> {
     .into_iter()
     .min()
     .unwrap_or(0);
+    let kept = || (0..n).filter(|&i| map.confidences[i] >= 0.0);
+    let count = kept().count();
     let header = format!(
         "ply\n\
          format binary_little_endian 1.0\n\
          comment surfel-slam surfel map, world frame, metres\n\
-         element vertex {n}\n\
+         element vertex {count}\n\
          property float x\n\
          property float y\n\
          property float z\n\
@@ -43,9 +46,9 @@ pub fn write_ply(map: &SurfelMap) -> Vec<u8> {
          property float confidence\n\
          end_header\n"
     );
-    let mut out = Vec::with_capacity(header.len() + n * VERTEX_BYTES);
+    let mut out = Vec::with_capacity(header.len() + count * VERTEX_BYTES);
     out.extend_from_slice(header.as_bytes());
-    for i in 0..n {
+    for i in kept() {
         let p = map.positions[i];
         let nrm = map.normals[i];
         for v in [p.x, p.y, p.z, nrm.x, nrm.y, nrm.z] {
@@ -122,6 +125,17 @@ mod tests {
             assert_eq!(float(v, "radius"), map.radii[i]);
             assert_eq!(float(v, "confidence"), map.confidences[i]);
         }
+        // An absorbed surfel (awaiting removal) is not written.
+        let mut with_absorbed = map.clone();
+        with_absorbed.push(Vec3::ONE, Vec3::Z, [1, 2, 3, 255], 0.01, 2.0, 4);
+        with_absorbed.confidences[0] = crate::fusion::ABSORBED;
+        let bytes = write_ply(&with_absorbed);
+        let ply = parser.read_ply(&mut bytes.as_slice()).expect("valid PLY");
+        let positions: Vec<f32> = ply.payload["vertex"]
+            .iter()
+            .map(|v| float(v, "x"))
+            .collect();
+        assert_eq!(positions, [-0.1, 1.0]);
         let empty = write_ply(&SurfelMap::default());
         let ply = parser
             .read_ply(&mut empty.as_slice())
