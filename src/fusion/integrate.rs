@@ -274,9 +274,7 @@ impl Integrator {
         }
         stats
     }
-}
 
-impl Integrator {
     /// Merges every candidate that lost its pixel to a more confident
     /// surfel whose disk holds its centre into that surfel (Keller et al.
     /// 2013 merge such overlapping points) and marks it [`ABSORBED`].
