@@ -8,7 +8,7 @@ use crate::camera::{CameraPreset, Intrinsics};
 use crate::clock::now_ms;
 use crate::frame::{DecodeScratch, DepthSettings, FrameError, RgbdFrame};
 use crate::fusion::{
-    remove_unstable, FusionConfig, FusionStats, Integrator, Prediction, SurfelMap,
+    remove_unstable, FusionConfig, FusionStats, Integrator, Prediction, SpatialOrder, SurfelMap,
 };
 use crate::preprocess::{half_resolution_into, FramePyramid, PreprocessConfig};
 use crate::se3;
@@ -244,6 +244,8 @@ pub struct Pipeline {
     map: SurfelMap,
     prediction: Prediction,
     integrator: Integrator,
+    /// Buffer for sorting settled surfels in space at cleanups.
+    order: SpatialOrder,
     tracker: TrackerWorkspace,
     trajectory: Vec<(f64, DAffine3)>,
     last_good: Option<DAffine3>,
@@ -270,6 +272,7 @@ impl Pipeline {
             map: SurfelMap::default(),
             prediction: Prediction::new(photometric),
             integrator: Integrator::default(),
+            order: SpatialOrder::default(),
             tracker: TrackerWorkspace::default(),
             trajectory: Vec::new(),
             last_good: None,
@@ -491,7 +494,8 @@ impl Pipeline {
                 // Full: evict stale unstable surfels now rather than at the
                 // next scheduled cleanup; adds beyond the budget are skipped
                 // (counted in `FusionStats::skipped`).
-                fusion.removed = remove_unstable(&mut self.map, &self.config.fusion, index);
+                fusion.removed =
+                    remove_unstable(&mut self.map, &self.config.fusion, index, &mut self.order);
             }
             let removed_early = fusion.removed;
             fusion = self.integrator.integrate(
@@ -505,7 +509,8 @@ impl Pipeline {
             );
             fusion.removed = removed_early;
             if index % self.config.fusion.cleanup_interval_frames.max(1) == 0 {
-                fusion.removed += remove_unstable(&mut self.map, &self.config.fusion, index);
+                fusion.removed +=
+                    remove_unstable(&mut self.map, &self.config.fusion, index, &mut self.order);
             }
             t3 = now_ms();
             let fusion_cfg = self.config.fusion;

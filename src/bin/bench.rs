@@ -132,12 +132,15 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
     // Flatness over a long run: the same window length early and late.
     if timings.len() >= 400 {
         let n = timings.len();
-        let window = |range: std::ops::Range<usize>| {
-            let mut v: Vec<f64> = timings[range].iter().map(|t| t.total_ms).collect();
+        let (early, late) = (&timings[100..200], &timings[n - 100..n]);
+        for ((name, e), (_, l)) in stage_medians(early).into_iter().zip(stage_medians(late)) {
+            println!("window_ms_{name}: {e:.2} early, {l:.2} late");
+        }
+        let total = |window: &[StageTimings]| {
+            let mut v: Vec<f64> = window.iter().map(|t| t.total_ms).collect();
             median(&mut v)
         };
-        let early = window(100..200);
-        let late = window(n - 100..n);
+        let (early, late) = (total(early), total(late));
         println!(
             "median_ms_frames_100_200: {early:.2}\nmedian_ms_frames_{}_{n}: {late:.2}\nlate_over_early: {:.3}",
             n - 100,

@@ -1,6 +1,7 @@
 //! Removal of surfels that stayed unstable too long (outliers, moving
 //! objects), and of surfels absorbed into others.
 
+use super::spatial_order::SpatialOrder;
 use super::{FusionConfig, SurfelMap};
 
 /// Removes surfels with confidence below the stable threshold that were created
@@ -15,7 +16,17 @@ use super::{FusionConfig, SurfelMap};
 /// compacting moves every later surfel, which a renderer must upload again,
 /// and on a revisit some surfel near the start of the map is absorbed at
 /// almost every cleanup (measured on TUM fr3/teddy).
-pub fn remove_unstable(map: &mut SurfelMap, config: &FusionConfig, frame: u32) -> usize {
+///
+/// The surfels that settle at this call (old enough, kept because stable)
+/// are then sorted in space by `order` (see `spatial_order`), so the map's
+/// chunks stay compact; they lie in the compacted range, which a renderer
+/// uploads again anyway.
+pub fn remove_unstable(
+    map: &mut SurfelMap,
+    config: &FusionConfig,
+    frame: u32,
+    order: &mut SpatialOrder,
+) -> usize {
     let before = map.len();
     let settled_before = map
         .last_cleanup
@@ -49,6 +60,13 @@ pub fn remove_unstable(map: &mut SurfelMap, config: &FusionConfig, frame: u32) -
         })
         .collect();
     map.retain_from(start, |i| keep[i - start]);
+    // Every surfel before `settled` was settled at an earlier call, and the
+    // rest are still in creation order, so both bounds are partition points.
+    let settled = map.first_seen.partition_point(|&f| f < settled_before);
+    let now_settled = map
+        .first_seen
+        .partition_point(|&f| f < frame.saturating_sub(max_age));
+    order.sort(map, settled..now_settled);
     map.last_cleanup = Some(frame);
     before - map.len()
 }
@@ -62,13 +80,14 @@ mod tests {
     #[test]
     fn absorbed_surfels_before_the_tail_wait_until_they_are_5_percent() {
         let config = FusionConfig::default();
+        let mut order = SpatialOrder::default();
         let mut map = SurfelMap::default();
         for i in 0..100 {
             map.push(Vec3::splat(i as f32), Vec3::Z, [0; 4], 0.01, 10.0, 0);
         }
         // Settle the old surfels: a cleanup long after they were made.
         let frame = 100;
-        assert_eq!(remove_unstable(&mut map, &config, frame), 0);
+        assert_eq!(remove_unstable(&mut map, &config, frame, &mut order), 0);
         let absorb = |map: &mut SurfelMap, i: usize| {
             map.confidences[i] = ABSORBED;
             map.first_absorbed = Some(map.first_absorbed.map_or(i, |a| a.min(i)));
@@ -76,12 +95,18 @@ mod tests {
         for i in [3, 7] {
             absorb(&mut map, i);
         }
-        assert_eq!(remove_unstable(&mut map, &config, frame + 10), 0);
+        assert_eq!(
+            remove_unstable(&mut map, &config, frame + 10, &mut order),
+            0
+        );
         assert_eq!(map.len(), 100);
         for i in [20, 30, 40] {
             absorb(&mut map, i);
         }
-        assert_eq!(remove_unstable(&mut map, &config, frame + 20), 5);
+        assert_eq!(
+            remove_unstable(&mut map, &config, frame + 20, &mut order),
+            5
+        );
         assert_eq!(map.len(), 95);
         assert!(map.confidences.iter().all(|&c| c >= 0.0));
         assert_eq!(map.positions[3], Vec3::splat(4.0), "order kept");

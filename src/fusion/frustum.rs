@@ -11,17 +11,22 @@ use std::ops::Range;
 const NEAR_M: f32 = 0.05;
 
 /// Writes into `out` the surfel index ranges of the map chunks that may be
-/// visible from `camera_from_world` up to depth `far_m` (metres).
+/// visible from `camera_from_world` up to depth `far_m` (metres) and whose
+/// box (world frame) `also` accepts.
 pub fn visible_chunks(
     map: &SurfelMap,
     k: &Intrinsics,
     camera_from_world: &RigidF32,
     far_m: f32,
+    mut also: impl FnMut(Vec3, Vec3) -> bool,
     out: &mut Vec<Range<usize>>,
 ) {
     let frustum = Frustum::new(k, camera_from_world, NEAR_M, far_m);
-    map.bounds()
-        .select(map.len(), |lo, hi| frustum.may_contain_box(lo, hi), out);
+    map.bounds().select(
+        map.len(),
+        |lo, hi| frustum.may_contain_box(lo, hi) && also(lo, hi),
+        out,
+    );
 }
 
 /// Half-spaces `normal . x + offset >= 0` (world frame, metres) bounding what

@@ -11,7 +11,8 @@
 //! visible chunks of the map with an atomic maximum per pixel, and merges are
 //! applied in parallel over the chunks; adds are appended in pixel order.
 
-use super::chunk_bounds::CHUNK;
+use super::chunk_bounds::{ChunkBounds, BLOCK, BLOCKS_PER_CHUNK, CHUNK};
+use super::depth_tiles::DepthTiles;
 use super::frustum::visible_chunks;
 use super::index_map::{pixel_of, RigidF32};
 use super::surfel_map::{ChunkMut, Surfel};
@@ -39,6 +40,10 @@ pub struct FusionStats {
     /// Surfels merged into a more confident surfel whose disk holds their
     /// centre; they are removed at the next cleanup.
     pub absorbed: usize,
+    /// Surfels visited by the association: those of the map blocks in view
+    /// and not wholly behind the measurements. It follows what the camera
+    /// sees, not the size of the map.
+    pub visited: usize,
 }
 
 /// Reusable buffers for fusing frames of one resolution.
@@ -47,7 +52,10 @@ pub struct Integrator {
     /// Per pixel: `(confidence bits << 32) | (surfel index + 1)` of the best
     /// candidate, 0 when none.
     best: Vec<AtomicU64>,
+    /// Chunks of the map that may hold candidates: in view and not wholly
+    /// behind the measurements (`DepthTiles`).
     visible: Vec<Range<usize>>,
+    tiles: DepthTiles,
     chunks: Vec<ChunkUpdate>,
     /// Per surfel: the pixel it is a candidate of this frame, or `NO_PIXEL`.
     pixels: Vec<u32>,
@@ -63,9 +71,10 @@ pub struct Integrator {
 struct ChunkUpdate {
     visible: bool,
     merged: usize,
-    /// Box around the merged surfels' new positions, world frame, metres.
-    min: Vec3,
-    max: Vec3,
+    /// Per block of the chunk, box around the merged surfels' new
+    /// positions, world frame, metres.
+    min: [Vec3; BLOCKS_PER_CHUNK],
+    max: [Vec3; BLOCKS_PER_CHUNK],
     /// Candidates that lost their pixel to a more confident surfel.
     losers: Vec<u32>,
 }
@@ -75,8 +84,8 @@ impl ChunkUpdate {
     fn reset(&mut self) {
         self.visible = false;
         self.merged = 0;
-        self.min = Vec3::splat(f32::INFINITY);
-        self.max = Vec3::splat(f32::NEG_INFINITY);
+        self.min = [Vec3::splat(f32::INFINITY); BLOCKS_PER_CHUNK];
+        self.max = [Vec3::splat(f32::NEG_INFINITY); BLOCKS_PER_CHUNK];
         self.losers.clear();
     }
 }
@@ -111,22 +120,25 @@ impl Integrator {
                 .par_iter()
                 .for_each(|b| b.store(0, Ordering::Relaxed));
         }
+        self.tiles.build(&level0.vertices, k.width);
+        let tiles = &self.tiles;
         visible_chunks(
             map,
             k,
             &camera_from_world,
             far_m + config.depth_gate_m,
+            |lo, hi| tiles.may_reach(k, &camera_from_world, (lo, hi), config.depth_gate_m),
             &mut self.visible,
         );
         self.chunks
-            .resize_with(map.bounds().len(), ChunkUpdate::default);
+            .resize_with(map.len().div_ceil(CHUNK), ChunkUpdate::default);
         self.chunks.iter_mut().for_each(ChunkUpdate::reset);
         for r in &self.visible {
             if let Some(c) = self.chunks.get_mut(r.start / CHUNK) {
                 c.visible = true;
             }
         }
-        let chunks = &self.chunks;
+        let (chunks, visible) = (&self.chunks, &self.visible);
         let cos_gate = config.normal_gate_deg.to_radians().cos();
         let best = &self.best;
         let map_ref = &*map;
@@ -139,9 +151,9 @@ impl Integrator {
                 if !chunks.get(c).is_some_and(|u| u.visible) {
                     return;
                 }
-                for (local, slot) in pixels.iter_mut().enumerate() {
-                    let j = c * CHUNK + local;
-                    *slot = NO_PIXEL;
+                pixels.fill(NO_PIXEL);
+                for j in ChunkBounds::in_chunk(visible, c).iter().cloned().flatten() {
+                    let slot = &mut pixels[j - c * CHUNK];
                     if map_ref.confidences[j] < 0.0 {
                         continue;
                     }
@@ -194,13 +206,14 @@ impl Integrator {
             }
         };
 
-        let pixels = &self.pixels;
+        let (pixels, visible) = (&self.pixels, &self.visible);
         map.for_each_chunk_mut(&mut self.chunks, |mut chunk, update| {
             if !update.visible {
                 return;
             }
-            for local in 0..chunk.positions.len() {
-                let j = chunk.first + local;
+            let c = chunk.first / CHUNK;
+            for j in ChunkBounds::in_chunk(visible, c).iter().cloned().flatten() {
+                let local = j - chunk.first;
                 let pixel = pixels[j];
                 if pixel == NO_PIXEL {
                     continue;
@@ -210,19 +223,23 @@ impl Integrator {
                     continue;
                 }
                 let p = merge(&mut chunk, local, &measure(pixel as usize), frame);
-                update.min = update.min.min(p);
-                update.max = update.max.max(p);
+                let block = local / BLOCK;
+                update.min[block] = update.min[block].min(p);
+                update.max[block] = update.max[block].max(p);
                 update.merged += 1;
             }
         });
         let mut stats = FusionStats::default();
         for (c, update) in self.chunks.iter().enumerate() {
             if update.merged > 0 {
-                map.grow_bounds(c, update.min, update.max);
+                for (b, (&lo, &hi)) in update.min.iter().zip(&update.max).enumerate() {
+                    map.grow_bounds(c * CHUNK + b * BLOCK, lo, hi);
+                }
                 stats.merged += update.merged;
             }
         }
         stats.absorbed = self.absorb_redundant(map, cos_gate);
+        stats.visited = self.visible.iter().map(ExactSizeIterator::len).sum();
         // Which pixels add a surfel is decided in parallel (the map is only
         // read); the surfels are appended in pixel order.
         let h = k.height;
@@ -299,7 +316,7 @@ impl Integrator {
             map.set_surfel(b, &merged);
             let position = merged.position;
             map.confidences[j] = ABSORBED;
-            map.grow_bounds(b / CHUNK, position, position);
+            map.grow_bounds(b, position, position);
             map.first_absorbed = Some(map.first_absorbed.map_or(j, |a| a.min(j)));
             absorbed += 1;
         }

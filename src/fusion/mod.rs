@@ -7,15 +7,18 @@
 
 pub mod chunk_bounds;
 mod cleanup;
+mod depth_tiles;
 pub mod frustum;
 pub mod index_map;
 mod integrate;
 pub mod predict;
+mod spatial_order;
 mod surfel_map;
 
 pub use cleanup::remove_unstable;
 pub use integrate::{FusionStats, Integrator, ABSORBED};
 pub use predict::Prediction;
+pub use spatial_order::SpatialOrder;
 pub use surfel_map::{Surfel, SurfelMap};
 
 /// Settings of the fusion stage.

@@ -65,7 +65,14 @@ impl Prediction {
         // One pixel per surfel, no splats: overlapping splats of noisy surfels
         // would again select by noise (measured: 22 cm vs 1.4 cm ATE on the
         // noisy synthetic room, 0.94 vs 0.75 cm on TUM fr3/teddy).
-        visible_chunks(map, k, &camera_from_world, far_m, &mut self.visible);
+        visible_chunks(
+            map,
+            k,
+            &camera_from_world,
+            far_m,
+            |_, _| true,
+            &mut self.visible,
+        );
         self.index.render(
             map,
             &self.visible,

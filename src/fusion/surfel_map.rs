@@ -88,7 +88,7 @@ pub struct SurfelMap {
     change_lo: usize,
     /// One past the highest index changed since the last `take_changed_range`.
     change_hi: usize,
-    /// Boxes around runs of consecutive surfels, for view culling.
+    /// Boxes around blocks of consecutive surfels, for view culling.
     bounds: ChunkBounds,
     /// Frame of the last removal of unstable surfels (see `remove_unstable`).
     pub(super) last_cleanup: Option<u32>,
@@ -268,19 +268,36 @@ impl SurfelMap {
             );
     }
 
-    /// Extends the spatial index of chunk `chunk` by the box `[min, max]`
-    /// (world frame, metres) after its surfels moved.
-    pub fn grow_bounds(&mut self, chunk: usize, min: Vec3, max: Vec3) {
+    /// Extends the box of the block holding surfel `i` by the box
+    /// `[min, max]` (world frame, metres) after surfels of it moved there.
+    pub fn grow_bounds(&mut self, i: usize, min: Vec3, max: Vec3) {
         if min.cmple(max).all() {
-            self.bounds.grow(chunk * CHUNK, min);
-            self.bounds.grow(chunk * CHUNK, max);
+            self.bounds.grow(i, min);
+            self.bounds.grow(i, max);
         }
     }
 
-    /// The spatial index: boxes around runs of consecutive surfels.
+    /// The spatial index: boxes around blocks of consecutive surfels.
     #[must_use]
     pub fn bounds(&self) -> &ChunkBounds {
         &self.bounds
+    }
+
+    /// Exchanges surfels `i` and `j` (every attribute); the caller marks
+    /// them changed and rebuilds the chunk boxes.
+    pub fn swap(&mut self, i: usize, j: usize) {
+        self.positions.swap(i, j);
+        self.normals.swap(i, j);
+        self.colours.swap(i, j);
+        self.radii.swap(i, j);
+        self.confidences.swap(i, j);
+        self.first_seen.swap(i, j);
+        self.last_seen.swap(i, j);
+    }
+
+    /// Recomputes the chunk boxes from the chunk holding surfel `first` on.
+    pub fn rebuild_bounds_from(&mut self, first: usize) {
+        self.bounds.rebuild_from(&self.positions, first);
     }
 
     /// Keeps only the surfels for which `keep(i)` is true, preserving order.
