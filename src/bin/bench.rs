@@ -90,6 +90,8 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
     let mut slam = Pipeline::new(config)?;
 
     let mut timings = Vec::with_capacity(total);
+    // Per frame: surfels in the map and surfels visited by fusion.
+    let mut sizes: Vec<(f64, f64)> = Vec::with_capacity(total);
     let (mut lost, mut recovered, mut failed) = (0usize, 0usize, 0usize);
     for i in 0..total {
         let k = ping_pong(i, sequence.frames.len());
@@ -102,6 +104,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
                     _ => {}
                 }
                 timings.push(report.timings);
+                sizes.push((report.surfels as f64, report.fusion.visited as f64));
             }
             Err(e) => {
                 failed += 1;
@@ -136,6 +139,15 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         for ((name, e), (_, l)) in stage_medians(early).into_iter().zip(stage_medians(late)) {
             println!("window_ms_{name}: {e:.2} early, {l:.2} late");
         }
+        let sizes = |range: std::ops::Range<usize>| {
+            let window = &sizes[range];
+            let mut map: Vec<f64> = window.iter().map(|s| s.0).collect();
+            let mut visited: Vec<f64> = window.iter().map(|s| s.1).collect();
+            (median(&mut map) / 1e3, median(&mut visited) / 1e3)
+        };
+        let ((map_e, visited_e), (map_l, visited_l)) = (sizes(100..200), sizes(n - 100..n));
+        println!("window_k_surfels: {map_e:.0} early, {map_l:.0} late");
+        println!("window_k_visited_by_fusion: {visited_e:.0} early, {visited_l:.0} late");
         let total = |window: &[StageTimings]| {
             let mut v: Vec<f64> = window.iter().map(|t| t.total_ms).collect();
             median(&mut v)
