@@ -14,7 +14,11 @@ use std::ops::Range;
 /// Surfels per chunk, the unit of parallel updates.
 pub const CHUNK: usize = 4096;
 
-/// Surfels per block, the unit of view tests.
+/// Surfels per block, the unit of view tests. Smaller blocks have tighter
+/// boxes but need more tests: on a full turn of the synthetic room fusion
+/// visited 68 k surfels with 512 and 88 k with 4096 (the chunk size); on
+/// TUM fr3/teddy, whose whole scene stays in view, 128, 256 and 512 cost the
+/// same.
 pub const BLOCK: usize = 512;
 
 /// Blocks per chunk.

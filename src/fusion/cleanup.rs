@@ -19,7 +19,7 @@ use super::{FusionConfig, SurfelMap};
 ///
 /// The surfels that settle at this call (old enough, kept because stable)
 /// are then sorted in space by `order` (see `spatial_order`), so the map's
-/// chunks stay compact; they lie in the compacted range, which a renderer
+/// blocks stay compact; they lie in the compacted range, which a renderer
 /// uploads again anyway.
 pub fn remove_unstable(
     map: &mut SurfelMap,

@@ -1,8 +1,8 @@
-//! Farthest measured depth per image tile, for skipping map chunks that lie
+//! Farthest measured depth per image tile, for skipping map blocks that lie
 //! wholly behind what the camera measures.
 //!
 //! Fusion only pairs a surfel with the measurement at its pixel when their
-//! depths differ by at most the depth gate, so a chunk whose box is farther
+//! depths differ by at most the depth gate, so a block whose box is farther
 //! than every measurement it can project onto, plus the gate, has no
 //! candidate: skipping it changes nothing. On a revisit that is the far
 //! side of objects and what they hide (about a fifth of the map on TUM

@@ -1,5 +1,5 @@
 //! The view frustum of a camera as six world-frame planes, for culling the
-//! map's chunk boxes.
+//! map's block boxes.
 
 use crate::camera::Intrinsics;
 use crate::fusion::index_map::RigidF32;
@@ -10,7 +10,7 @@ use std::ops::Range;
 /// Nearest depth considered by culling, metres (sensors see nothing closer).
 const NEAR_M: f32 = 0.05;
 
-/// Writes into `out` the surfel index ranges of the map chunks that may be
+/// Writes into `out` the surfel index ranges of the map blocks that may be
 /// visible from `camera_from_world` up to depth `far_m` (metres) and whose
 /// box (world frame) `also` accepts.
 pub fn visible_chunks(

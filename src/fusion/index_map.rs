@@ -2,7 +2,7 @@
 //! surfel centre, nearest first: the z-buffer behind the model prediction.
 //! Each pixel holds `(depth bits << 32) | surfel index`, so an atomic
 //! `fetch_min` keeps the nearest surfel while surfels are projected in
-//! parallel. Only the chunks of the map inside the view frustum are visited.
+//! parallel. Only the blocks of the map inside the view frustum are visited.
 //!
 //! With a `confidence_band_m`, a second pass keeps, per cell, the most
 //! confident surfel within that depth of the nearest one. Picking the nearest
@@ -70,7 +70,7 @@ pub fn pixel_of(k: &Intrinsics, p: Vec3) -> Option<(f32, usize)> {
     k.pixel_index(k.project(p)).map(|i| (p.z, i))
 }
 
-/// Calls `f(i)` in parallel for every surfel index in `ranges` (chunks of the map).
+/// Calls `f(i)` in parallel for every surfel index in `ranges` (blocks of the map).
 pub fn for_each_in(ranges: &[Range<usize>], f: impl Fn(usize) + Sync + Send) {
     ranges.par_iter().for_each(|r| r.clone().for_each(&f));
 }

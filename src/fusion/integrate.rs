@@ -8,7 +8,7 @@
 //! merged into it, and a pixel without one adds a new surfel unless the disk
 //! of a neighbouring pixel's surfel already covers it. Every surfel
 //! projects into one pixel only, so candidates are found in parallel over the
-//! visible chunks of the map with an atomic maximum per pixel, and merges are
+//! visible blocks of the map with an atomic maximum per pixel, and merges are
 //! applied in parallel over the chunks; adds are appended in pixel order.
 
 use super::chunk_bounds::{ChunkBounds, BLOCK, BLOCKS_PER_CHUNK, CHUNK};

@@ -1,7 +1,10 @@
 //! Point-based fusion (Keller et al. 2013): associate each input pixel with
 //! the surfels whose centres project into it, merge or add, remove unstable
 //! surfels, and predict the model for the next frame's tracker. Only the
-//! map chunks inside the view frustum are visited (`chunk_bounds`, `frustum`).
+//! map blocks inside the view frustum are visited (`chunk_bounds`,
+//! `frustum`), and fusion also skips blocks wholly behind the measured depth
+//! (`depth_tiles`); settled surfels are sorted in space so that blocks are
+//! compact (`spatial_order`).
 //!
 //! All surfel attributes are in the world frame, metres.
 

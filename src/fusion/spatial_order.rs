@@ -1,14 +1,19 @@
-//! Spatial ordering of settled surfels, so that map chunks are compact in
+//! Spatial ordering of settled surfels, so that map blocks are compact in
 //! space and the view tests of `chunk_bounds` can skip them.
 //!
 //! Surfels are appended in the pixel order of the frame that added them. On a
-//! first view that is coherent (a chunk is a band of image rows), but once
+//! first view that is coherent (a block is a band of image rows), but once
 //! the scene is mapped each frame adds a few thousand surfels scattered over
-//! the image, and a chunk of them spans the whole view: its box then passes
+//! the image, and a block of them spans the whole view: its box then passes
 //! every test and the map is visited whole (measured on TUM fr3/teddy played
-//! for 1500 frames: every chunk was visited on every frame). Sorting each
-//! block of surfels along a Morton (Z-order) curve of their positions when
-//! the block settles makes consecutive surfels neighbours in space.
+//! for 1500 frames, every 4096-surfel chunk was visited on every frame).
+//! Sorting the surfels that settle at each cleanup along a Morton (Z-order)
+//! curve of their positions makes consecutive surfels neighbours in space.
+//! On a full turn of the synthetic room (`tests/synthetic_slam.rs`), fusion
+//! visited 111 k of a 223 k-surfel map at the end without the sort and 68 k
+//! of 221 k with it; on real sequences it also makes the map's memory
+//! accesses more local (fusion 8.7 -> 8.2 ms, prediction 3.2 -> 2.8 ms on
+//! TUM fr3/teddy).
 
 use super::SurfelMap;
 use glam::Vec3;
