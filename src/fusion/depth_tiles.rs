@@ -61,6 +61,10 @@ impl DepthTiles {
         (min, max): (Vec3, Vec3),
         gate_m: f32,
     ) -> bool {
+        if self.far.is_empty() {
+            // Never built (or an empty image): nothing to test against.
+            return true;
+        }
         let mut near = f32::INFINITY;
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
         for corner in 0..8 {
@@ -134,6 +138,8 @@ mod tests {
         assert!(!tiles.may_reach(&k, &t, cube(-0.4, 2.11), gate));
         // Right half: no measurement to pair with.
         assert!(!tiles.may_reach(&k, &t, cube(0.4, 2.0), gate));
+        // Tiles never built keep every box.
+        assert!(DepthTiles::default().may_reach(&k, &t, cube(-0.4, 3.0), gate));
         // Outside the image, and a box reaching the camera plane.
         assert!(!tiles.may_reach(&k, &t, cube(-5.0, 2.0), gate));
         assert!(tiles.may_reach(&k, &t, cube(-0.4, 0.0), gate));

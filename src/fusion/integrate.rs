@@ -52,8 +52,8 @@ pub struct Integrator {
     /// Per pixel: `(confidence bits << 32) | (surfel index + 1)` of the best
     /// candidate, 0 when none.
     best: Vec<AtomicU64>,
-    /// Chunks of the map that may hold candidates: in view and not wholly
-    /// behind the measurements (`DepthTiles`).
+    /// Surfel ranges (map blocks) that may hold candidates: in view and
+    /// not wholly behind the measurements (`DepthTiles`).
     visible: Vec<Range<usize>>,
     tiles: DepthTiles,
     chunks: Vec<ChunkUpdate>,
