@@ -139,13 +139,14 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         for ((name, e), (_, l)) in stage_medians(early).into_iter().zip(stage_medians(late)) {
             println!("window_ms_{name}: {e:.2} early, {l:.2} late");
         }
-        let sizes = |range: std::ops::Range<usize>| {
+        let window_sizes = |range: std::ops::Range<usize>| {
             let window = &sizes[range];
             let mut map: Vec<f64> = window.iter().map(|s| s.0).collect();
             let mut visited: Vec<f64> = window.iter().map(|s| s.1).collect();
             (median(&mut map) / 1e3, median(&mut visited) / 1e3)
         };
-        let ((map_e, visited_e), (map_l, visited_l)) = (sizes(100..200), sizes(n - 100..n));
+        let ((map_e, visited_e), (map_l, visited_l)) =
+            (window_sizes(100..200), window_sizes(n - 100..n));
         println!("window_k_surfels: {map_e:.0} early, {map_l:.0} late");
         println!("window_k_visited_by_fusion: {visited_e:.0} early, {visited_l:.0} late");
         let total = |window: &[StageTimings]| {

@@ -52,14 +52,10 @@ pub fn remove_unstable(
     };
     let stable = config.stable_confidence;
     let max_age = config.unstable_max_age;
-    let (confidences, first_seen) = (&map.confidences, &map.first_seen);
-    let keep: Vec<bool> = (start..before)
-        .map(|i| {
-            confidences[i] >= stable
-                || (confidences[i] >= 0.0 && frame.saturating_sub(first_seen[i]) <= max_age)
-        })
-        .collect();
-    map.retain_from(start, |i| keep[i - start]);
+    map.retain_from(start, |map, i| {
+        let c = map.confidences[i];
+        c >= stable || (c >= 0.0 && frame.saturating_sub(map.first_seen[i]) <= max_age)
+    });
     // Every surfel before `settled` was settled at an earlier call, and the
     // rest are still in creation order, so both bounds are partition points.
     let settled = map.first_seen.partition_point(|&f| f < settled_before);

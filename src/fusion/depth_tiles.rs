@@ -33,16 +33,16 @@ impl DepthTiles {
     /// Fills the tiles from per-pixel camera-frame `vertices` of a
     /// `width`-pixel-wide image (`z <= 0`: no measurement).
     pub fn build(&mut self, vertices: &[Vec3], width: usize) {
-        let height = vertices.len() / width.max(1);
+        let width = width.max(1);
         self.columns = width.div_ceil(TILE);
-        self.rows = height.div_ceil(TILE);
+        self.rows = (vertices.len() / width).div_ceil(TILE);
         self.far.clear();
         self.far.resize(self.columns * self.rows, 0.0);
         self.far
-            .par_chunks_mut(self.columns.max(1))
-            .zip(vertices.par_chunks(TILE * width.max(1)))
+            .par_chunks_mut(self.columns)
+            .zip(vertices.par_chunks(TILE * width))
             .for_each(|(tiles, band)| {
-                for row in band.chunks_exact(width.max(1)) {
+                for row in band.chunks_exact(width) {
                     for (far, run) in tiles.iter_mut().zip(row.chunks(TILE)) {
                         *far = run.iter().fold(*far, |m, p| m.max(p.z));
                     }

@@ -13,7 +13,7 @@ const NEAR_M: f32 = 0.05;
 /// Writes into `out` the surfel index ranges of the map blocks that may be
 /// visible from `camera_from_world` up to depth `far_m` (metres) and whose
 /// box (world frame) `also` accepts.
-pub fn visible_chunks(
+pub fn visible_blocks(
     map: &SurfelMap,
     k: &Intrinsics,
     camera_from_world: &RigidF32,

@@ -13,7 +13,7 @@
 
 use super::chunk_bounds::{ChunkBounds, BLOCK, BLOCKS_PER_CHUNK, CHUNK};
 use super::depth_tiles::DepthTiles;
-use super::frustum::visible_chunks;
+use super::frustum::visible_blocks;
 use super::index_map::{pixel_of, RigidF32};
 use super::surfel_map::{ChunkMut, Surfel};
 use super::{FusionConfig, SurfelMap};
@@ -122,7 +122,7 @@ impl Integrator {
         }
         self.tiles.build(&level0.vertices, k.width);
         let tiles = &self.tiles;
-        visible_chunks(
+        visible_blocks(
             map,
             k,
             &camera_from_world,

@@ -3,7 +3,7 @@
 //! frame's tracker aligns against (frame-to-model tracking).
 
 use crate::camera::Intrinsics;
-use crate::fusion::frustum::visible_chunks;
+use crate::fusion::frustum::visible_blocks;
 use crate::fusion::index_map::{IndexMap, RigidF32};
 use crate::fusion::SurfelMap;
 use glam::{DAffine3, Vec3};
@@ -65,7 +65,7 @@ impl Prediction {
         // One pixel per surfel, no splats: overlapping splats of noisy surfels
         // would again select by noise (measured: 22 cm vs 1.4 cm ATE on the
         // noisy synthetic room, 0.94 vs 0.75 cm on TUM fr3/teddy).
-        visible_chunks(
+        visible_blocks(
             map,
             k,
             &camera_from_world,

@@ -301,19 +301,21 @@ impl SurfelMap {
     }
 
     /// Keeps only the surfels for which `keep(i)` is true, preserving order.
-    pub fn retain_indices(&mut self, keep: impl FnMut(usize) -> bool) {
-        self.retain_from(0, keep);
+    pub fn retain_indices(&mut self, mut keep: impl FnMut(usize) -> bool) {
+        self.retain_from(0, |_, i| keep(i));
     }
 
     /// Keeps every surfel before `start` and, from `start` on, those for
-    /// which `keep(i)` is true, preserving order. Costs O(len - start).
-    pub fn retain_from(&mut self, start: usize, mut keep: impl FnMut(usize) -> bool) {
+    /// which `keep(map, i)` is true, preserving order; `keep` reads surfel
+    /// `i` from `map` before anything at or after `i` was moved. Costs
+    /// O(len - start).
+    pub fn retain_from(&mut self, start: usize, mut keep: impl FnMut(&SurfelMap, usize) -> bool) {
         let len = self.len();
         let start = start.min(len);
         let mut write = start;
         let mut first_removed = None;
         for read in start..len {
-            if !keep(read) {
+            if !keep(self, read) {
                 first_removed.get_or_insert(read);
                 continue;
             }
