@@ -14,7 +14,7 @@
 use super::chunk_bounds::{ChunkBounds, BLOCK, BLOCKS_PER_CHUNK, CHUNK};
 use super::depth_tiles::DepthTiles;
 use super::frustum::visible_blocks;
-use super::index_map::{pixel_of, RigidF32};
+use super::index_map::{project_to_pixels, RigidF32};
 use super::surfel_map::{ChunkMut, Surfel};
 use super::{FusionConfig, SurfelMap};
 use crate::camera::Intrinsics;
@@ -152,28 +152,39 @@ impl Integrator {
                     return;
                 }
                 pixels.fill(NO_PIXEL);
-                for j in ChunkBounds::in_chunk(visible, c).iter().cloned().flatten() {
-                    let slot = &mut pixels[j - c * CHUNK];
-                    if map_ref.confidences[j] < 0.0 {
-                        continue;
+                for range in ChunkBounds::in_chunk(visible, c) {
+                    let local = range.start - c * CHUNK..range.end - c * CHUNK;
+                    project_to_pixels(
+                        k,
+                        &camera_from_world,
+                        &map_ref.positions[range.clone()],
+                        &mut pixels[local],
+                    );
+                    for j in range.clone() {
+                        let slot = &mut pixels[j - c * CHUNK];
+                        if *slot == NO_PIXEL {
+                            continue;
+                        }
+                        let pixel = *slot as usize;
+                        *slot = NO_PIXEL;
+                        if map_ref.confidences[j] < 0.0 {
+                            continue;
+                        }
+                        let z = camera_from_world.point(map_ref.positions[j]).z;
+                        let p = level0.vertices[pixel];
+                        let n = level0.normals[pixel];
+                        if p.z <= 0.0 || n == Vec3::ZERO || (z - p.z).abs() > config.depth_gate_m {
+                            continue;
+                        }
+                        if camera_from_world.vector(map_ref.normals[j]).dot(n) < cos_gate {
+                            continue;
+                        }
+                        *slot = pixel as u32;
+                        // Confidences are positive, so their bit patterns order like the values.
+                        let key = (u64::from(map_ref.confidences[j].max(0.0).to_bits()) << 32)
+                            | (j as u64 + 1);
+                        best[pixel].fetch_max(key, Ordering::Relaxed);
                     }
-                    let q = camera_from_world.point(map_ref.positions[j]);
-                    let Some((z, pixel)) = pixel_of(k, q) else {
-                        continue;
-                    };
-                    let p = level0.vertices[pixel];
-                    let n = level0.normals[pixel];
-                    if p.z <= 0.0 || n == Vec3::ZERO || (z - p.z).abs() > config.depth_gate_m {
-                        continue;
-                    }
-                    if camera_from_world.vector(map_ref.normals[j]).dot(n) < cos_gate {
-                        continue;
-                    }
-                    *slot = pixel as u32;
-                    // Confidences are positive, so their bit patterns order like the values.
-                    let key = (u64::from(map_ref.confidences[j].max(0.0).to_bits()) << 32)
-                        | (j as u64 + 1);
-                    best[pixel].fetch_max(key, Ordering::Relaxed);
                 }
             });
 
