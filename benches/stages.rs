@@ -122,10 +122,10 @@ fn stages(c: &mut Criterion) {
     let mut prediction = Prediction::new(true);
     let map = f.slam.map();
     let include = |i| fusion.predicts(map, i, MAP_FRAMES as u32);
-    prediction.render(map, &f.pose, &k, (fusion.depth_gate_m, far), include);
+    prediction.render(map, &f.pose, &k, (fusion.depth_gate_m, far), None, include);
     c.bench_function("prediction (map-sized)", |b| {
         b.iter(|| {
-            prediction.render(map, &f.pose, &k, (fusion.depth_gate_m, far), include);
+            prediction.render(map, &f.pose, &k, (fusion.depth_gate_m, far), None, include);
         });
     });
 

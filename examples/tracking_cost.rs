@@ -32,7 +32,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut prediction = Prediction::default();
     let map = slam.map();
     let band = (config.fusion.depth_gate_m, config.depth.max_m);
-    prediction.render(map, &pose, &k, band, |i| {
+    prediction.render(map, &pose, &k, band, None, |i| {
         config.fusion.predicts(map, i, frames as u32)
     });
     let mut pyramid = FramePyramid::new(&k, &config.preprocess);

@@ -519,10 +519,16 @@ impl Pipeline {
             // it before the map had the frames to become stable.
             let fused = self.counts.tracked + self.counts.recovered;
             let far_m = self.config.depth.max_m;
-            self.prediction
-                .render(map, &pose, &k, (fusion_cfg.depth_gate_m, far_m), |i| {
-                    fusion_cfg.predicts(map, i, fused)
-                });
+            // The frame just fused was taken from `pose`: what it measured
+            // hides what lies behind.
+            self.prediction.render(
+                map,
+                &pose,
+                &k,
+                (fusion_cfg.depth_gate_m, far_m),
+                Some(self.integrator.depth_tiles()),
+                |i| fusion_cfg.predicts(map, i, fused),
+            );
             self.tracker
                 .remember_frame(&self.pyramid, &pose, &self.config.tracker);
             self.last_good = Some(pose);

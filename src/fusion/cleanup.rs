@@ -52,17 +52,19 @@ pub fn remove_unstable(
     };
     let stable = config.stable_confidence;
     let max_age = config.unstable_max_age;
-    map.retain_from(start, |map, i| {
+    let keep = |map: &SurfelMap, i: usize| {
         let c = map.confidences[i];
         c >= stable || (c >= 0.0 && frame.saturating_sub(map.first_seen[i]) <= max_age)
-    });
+    };
+    order.before_removal(start, |i| !keep(map, i));
+    map.retain_from(start, keep);
     // Every surfel before `settled` was settled at an earlier call, and the
     // rest are still in creation order, so both bounds are partition points.
     let settled = map.first_seen.partition_point(|&f| f < settled_before);
     let now_settled = map
         .first_seen
         .partition_point(|&f| f < frame.saturating_sub(max_age));
-    order.sort(map, settled..now_settled);
+    order.settle(map, settled, now_settled);
     map.last_cleanup = Some(frame);
     before - map.len()
 }

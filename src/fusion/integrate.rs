@@ -94,6 +94,13 @@ impl ChunkUpdate {
 const NO_PIXEL: u32 = u32::MAX;
 
 impl Integrator {
+    /// Farthest measured depth per tile of the last frame integrated, seen
+    /// from its pose (empty before the first frame).
+    #[must_use]
+    pub fn depth_tiles(&self) -> &DepthTiles {
+        &self.tiles
+    }
+
     /// Fuses the frame in `pyramid` seen from `world_from_camera` into `map`
     /// at index `frame`; `far_m` is the farthest depth the sensor measures.
     #[allow(clippy::too_many_arguments)]

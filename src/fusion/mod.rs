@@ -2,9 +2,9 @@
 //! the surfels whose centres project into it, merge or add, remove unstable
 //! surfels, and predict the model for the next frame's tracker. Only the
 //! map blocks inside the view frustum are visited (`chunk_bounds`,
-//! `frustum`), and fusion also skips blocks wholly behind the measured depth
-//! (`depth_tiles`); settled surfels are sorted in space so that blocks are
-//! compact (`spatial_order`).
+//! `frustum`); fusion also skips blocks wholly behind the measured depth
+//! (`depth_tiles`), and prediction the blocks that surface hides. Settled
+//! surfels are sorted in space so that blocks are compact (`spatial_order`).
 //!
 //! All surfel attributes are in the world frame, metres.
 
@@ -19,6 +19,7 @@ mod spatial_order;
 mod surfel_map;
 
 pub use cleanup::remove_unstable;
+pub use depth_tiles::DepthTiles;
 pub use integrate::{FusionStats, Integrator, ABSORBED};
 pub use predict::Prediction;
 pub use spatial_order::SpatialOrder;

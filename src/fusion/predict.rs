@@ -5,7 +5,7 @@
 use crate::camera::Intrinsics;
 use crate::fusion::frustum::visible_blocks;
 use crate::fusion::index_map::{IndexMap, RigidF32};
-use crate::fusion::SurfelMap;
+use crate::fusion::{DepthTiles, SurfelMap};
 use glam::{DAffine3, Vec3};
 use rayon::prelude::*;
 
@@ -44,13 +44,17 @@ impl Prediction {
 
     /// Renders the surfels selected by `include` into the view `world_from_camera`
     /// up to depth `far_m`; per pixel, the most confident surfel within
-    /// `depth_band_m` of the nearest.
+    /// `depth_band_m` of the nearest. With `measured`, the depth tiles of a
+    /// frame taken from this same pose, map blocks lying more than
+    /// `depth_band_m` behind the surface it measured are skipped: that
+    /// surface hides them.
     pub fn render(
         &mut self,
         map: &SurfelMap,
         world_from_camera: &DAffine3,
         k: &Intrinsics,
         (depth_band_m, far_m): (f32, f32),
+        measured: Option<&DepthTiles>,
         include: impl Fn(usize) -> bool + Sync,
     ) {
         let n = k.pixel_count();
@@ -70,7 +74,11 @@ impl Prediction {
             k,
             &camera_from_world,
             far_m,
-            |_, _| true,
+            |lo, hi| {
+                measured.map_or(true, |t| {
+                    t.may_show(k, &camera_from_world, (lo, hi), depth_band_m)
+                })
+            },
             &mut self.visible,
         );
         self.index.render(

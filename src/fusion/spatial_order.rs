@@ -8,13 +8,16 @@
 //! every test and the map is visited whole (measured on TUM fr3/teddy played
 //! for 1500 frames, every 4096-surfel chunk was visited on every frame).
 //! Sorting the surfels that settle at each cleanup along a Morton (Z-order)
-//! curve of their positions makes consecutive surfels neighbours in space.
+//! curve of their positions makes consecutive surfels neighbours in space;
+//! merging the sorted runs now and then (see [`SpatialOrder`]) keeps blocks
+//! compact as the map grows.
 //! On a full turn of the synthetic room (`tests/synthetic_slam.rs`), fusion
 //! visited 111 k of a 223 k-surfel map at the end without the sort and 68 k
 //! of 221 k with it; on real sequences it also makes the map's memory
 //! accesses more local (fusion 8.7 -> 8.2 ms, prediction 3.2 -> 2.8 ms on
 //! TUM fr3/teddy).
 
+use super::surfel_map::ReorderScratch;
 use super::SurfelMap;
 use glam::Vec3;
 use std::ops::Range;
@@ -25,13 +28,80 @@ const CELL_M: f32 = 0.01;
 /// Cells per axis on each side of the world origin (21 bits per axis).
 const HALF_SPAN: i32 = 1 << 20;
 
-/// Reusable buffer of (Morton key, index) pairs.
+/// The sorted runs that tile the settled part of the map, and reusable
+/// buffers for sorting.
+///
+/// Sorting only the surfels that settle at one cleanup (a few thousand,
+/// spread over the whole view) gives blocks that each span a twentieth of
+/// the scene; re-sorting the whole settled part at every cleanup costs
+/// O(n log n) each time. So, as in a log-structured merge, each cleanup's
+/// surfels form a new sorted run, and the last two runs are sorted together
+/// while the newer is at least half as long as the older: every surfel is
+/// re-sorted O(log n) times in all, and most of the map lies in a few long
+/// runs whose blocks are compact. Measured on TUM fr3/teddy played back and
+/// forth for 1500 frames: late in the run fusion visits 410 k surfels
+/// instead of 470 k (more blocks lie wholly behind the measured surface;
+/// 394 k when every cleanup re-sorts all settled surfels), and sorting
+/// costs 1.2 ms per cleanup on average, 14 ms at most when the longest
+/// runs merge (10 ms per cleanup when re-sorting all settled surfels).
 #[derive(Debug, Default)]
 pub struct SpatialOrder {
     keys: Vec<(u64, u32)>,
+    /// Sorted runs, in index order; the last one ends where the settled
+    /// surfels end.
+    runs: Vec<Range<usize>>,
+    scratch: ReorderScratch,
 }
 
 impl SpatialOrder {
+    /// Moves the runs to where they will be once the surfels from `start`
+    /// on for which `removed(i)` is true are removed (order preserved).
+    /// Call before the removal.
+    pub fn before_removal(&mut self, start: usize, removed: impl Fn(usize) -> bool) {
+        let mut gone = 0;
+        let mut counted = start;
+        for run in &mut self.runs {
+            let shift_start = gone;
+            if run.end > counted {
+                gone += (counted.max(run.start)..run.end)
+                    .filter(|&i| removed(i))
+                    .count();
+                counted = run.end;
+            }
+            *run = run.start - shift_start.min(run.start)..run.end - gone.min(run.end);
+        }
+        self.runs.retain(|r| !r.is_empty());
+    }
+
+    /// Adds the surfels `settled..now_settled`, which settled since the
+    /// last call, as a new sorted run and merges runs as described on the
+    /// type; the re-sorted range is marked changed and its boxes rebuilt.
+    pub fn settle(&mut self, map: &mut SurfelMap, settled: usize, now_settled: usize) {
+        let now_settled = now_settled.min(map.len());
+        if self.runs.last().map_or(0, |r| r.end) != settled || settled > now_settled {
+            // The map was cleared or changed elsewhere: start again from one run.
+            self.runs.clear();
+            self.runs.push(0..now_settled);
+            self.sort(map, 0..now_settled);
+            return;
+        }
+        if now_settled == settled {
+            return;
+        }
+        self.runs.push(settled..now_settled);
+        while let [.., older, newer] = self.runs.as_slice() {
+            if newer.len() * 2 < older.len() {
+                break;
+            }
+            let merged = older.start..newer.end;
+            self.runs.truncate(self.runs.len() - 2);
+            self.runs.push(merged);
+        }
+        if let Some(last) = self.runs.last().cloned() {
+            self.sort(map, last);
+        }
+    }
+
     /// Reorders the surfels of `range` along the Morton curve of their
     /// positions (world frame). Marks the range changed and rebuilds the
     /// chunk boxes from its start.
@@ -48,15 +118,13 @@ impl SpatialOrder {
                 .map(|(i, &p)| (morton_key(p), i as u32)),
         );
         self.keys.sort_unstable();
-        // Position `i` receives the surfel that was at `keys[i].1`; earlier
-        // swaps moved a surfel from `j < i` to `keys[j].1`, so follow the chain.
-        for i in 0..self.keys.len() {
-            let mut j = self.keys[i].1 as usize;
-            while j < i {
-                j = self.keys[j].1 as usize;
-            }
-            map.swap(range.start + i, range.start + j);
-        }
+        let keys = &self.keys;
+        map.reorder(
+            range.start,
+            range.len(),
+            |i| keys[i].1 as usize,
+            &mut self.scratch,
+        );
         map.mark_changed(range.start);
         map.mark_changed(range.end - 1);
         map.rebuild_bounds_from(range.start);
@@ -97,6 +165,89 @@ mod tests {
             assert_eq!(spread_bits(1 << b), 1 << (3 * b));
         }
         assert_eq!(spread_bits(u32::MAX), 0x1249_2492_4924_9249);
+    }
+
+    /// A map of `n` surfels scattered over a 2 m cube (a fixed LCG), with
+    /// `first_seen` = creation index.
+    fn scattered(n: u32) -> SurfelMap {
+        let mut map = SurfelMap::default();
+        let mut state = 12345u32;
+        let mut next = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1 << 24) as f32 * 2.0
+        };
+        for i in 0..n {
+            let p = Vec3::new(next(), next(), next());
+            map.push(p, Vec3::Z, [0; 4], 0.01, 10.0, i);
+        }
+        map
+    }
+
+    /// Checks that `order`'s runs tile `0..settled` and are each sorted.
+    fn assert_sorted_runs(order: &SpatialOrder, map: &SurfelMap, settled: usize) {
+        let mut end = 0;
+        for run in &order.runs {
+            assert_eq!(run.start, end, "runs {:?}", order.runs);
+            let keys: Vec<u64> = map.positions[run.clone()]
+                .iter()
+                .map(|&p| morton_key(p))
+                .collect();
+            assert!(keys.windows(2).all(|w| w[0] <= w[1]), "run {run:?}");
+            end = run.end;
+        }
+        assert_eq!(end, settled);
+    }
+
+    #[test]
+    fn each_cleanup_adds_a_run_and_runs_merge_when_the_newer_is_half_as_long() {
+        let mut map = scattered(5000);
+        let mut order = SpatialOrder::default();
+        let mut settled = 0;
+        for now_settled in (100..=5000).step_by(100) {
+            order.settle(&mut map, settled, now_settled);
+            settled = now_settled;
+            assert_sorted_runs(&order, &map, settled);
+            // Each run is more than twice as long as the next: O(log n) runs.
+            for w in order.runs.windows(2) {
+                assert!(w[1].len() * 2 < w[0].len(), "runs {:?}", order.runs);
+            }
+        }
+        assert!(order.runs.len() <= 6, "runs {:?}", order.runs);
+        let mut seen = map.first_seen.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..5000).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn removing_surfels_moves_the_runs_with_the_surfels_they_hold() {
+        let mut map = scattered(3000);
+        let mut order = SpatialOrder::default();
+        let mut settled = 0;
+        for now_settled in [2000, 2600, 2800] {
+            order.settle(&mut map, settled, now_settled);
+            settled = now_settled;
+        }
+        assert_eq!(order.runs.len(), 3, "runs {:?}", order.runs);
+        // Remove every seventh surfel from index 1000 on, in every run and
+        // in the unsettled tail.
+        let removed = |map: &SurfelMap, i: usize| i >= 1000 && map.first_seen[i] % 7 == 0;
+        let gone_before = |end: usize| (1000..end).filter(|&i| removed(&map, i)).count();
+        let expected: Vec<usize> = order
+            .runs
+            .iter()
+            .map(|r| r.end - gone_before(r.end))
+            .collect();
+        order.before_removal(1000, |i| removed(&map, i));
+        let marked: Vec<bool> = (0..map.len()).map(|i| removed(&map, i)).collect();
+        map.retain_from(1000, |_, i| !marked[i]);
+        let ends: Vec<usize> = order.runs.iter().map(|r| r.end).collect();
+        assert_eq!(ends, expected);
+        let settled = expected[2];
+        assert_sorted_runs(&order, &map, settled);
+        // The next cleanup continues from the moved runs instead of starting again.
+        order.settle(&mut map, settled, settled + 100);
+        assert_eq!(order.runs.first(), Some(&(0..expected[0])));
+        assert_sorted_runs(&order, &map, settled + 100);
     }
 
     #[test]

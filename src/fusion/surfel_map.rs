@@ -67,6 +67,22 @@ pub struct ChunkMut<'a> {
     pub last_seen: &'a mut [u32],
 }
 
+/// Reusable buffers for [`SurfelMap::reorder`], one per attribute type.
+#[derive(Debug, Default)]
+pub struct ReorderScratch {
+    vectors: Vec<Vec3>,
+    colours: Vec<[u8; 4]>,
+    floats: Vec<f32>,
+    frames: Vec<u32>,
+}
+
+/// Reorders `values` so that slot `i` holds the value that was at `source(i)`.
+fn gather<T: Copy>(values: &mut [T], source: impl Fn(usize) -> usize, scratch: &mut Vec<T>) {
+    scratch.clear();
+    scratch.extend((0..values.len()).map(|i| values[source(i)]));
+    values.copy_from_slice(scratch);
+}
+
 /// All surfels of the model, structure of arrays; index `i` is one surfel.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SurfelMap {
@@ -283,16 +299,29 @@ impl SurfelMap {
         &self.bounds
     }
 
-    /// Exchanges surfels `i` and `j` (every attribute); the caller marks
-    /// them changed and rebuilds the chunk boxes.
-    pub fn swap(&mut self, i: usize, j: usize) {
-        self.positions.swap(i, j);
-        self.normals.swap(i, j);
-        self.colours.swap(i, j);
-        self.radii.swap(i, j);
-        self.confidences.swap(i, j);
-        self.first_seen.swap(i, j);
-        self.last_seen.swap(i, j);
+    /// Reorders the `len` surfels from `start` on so that slot `start + i`
+    /// receives the surfel that was at `start + source(i)` (`source` is a
+    /// permutation of `0..len`); the caller marks them changed and rebuilds
+    /// the chunk boxes.
+    pub fn reorder(
+        &mut self,
+        start: usize,
+        len: usize,
+        source: impl Fn(usize) -> usize + Copy,
+        scratch: &mut ReorderScratch,
+    ) {
+        let r = start..start + len;
+        gather(&mut self.positions[r.clone()], source, &mut scratch.vectors);
+        gather(&mut self.normals[r.clone()], source, &mut scratch.vectors);
+        gather(&mut self.colours[r.clone()], source, &mut scratch.colours);
+        gather(&mut self.radii[r.clone()], source, &mut scratch.floats);
+        gather(
+            &mut self.confidences[r.clone()],
+            source,
+            &mut scratch.floats,
+        );
+        gather(&mut self.first_seen[r.clone()], source, &mut scratch.frames);
+        gather(&mut self.last_seen[r], source, &mut scratch.frames);
     }
 
     /// Recomputes the chunk boxes from the chunk holding surfel `first` on.
