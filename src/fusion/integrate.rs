@@ -115,6 +115,8 @@ impl Integrator {
         far_m: f32,
     ) -> FusionStats {
         let Some(level0) = pyramid.levels.first() else {
+            // No tiles from an earlier pose must outlive this frame.
+            self.tiles.build(&[], k.width);
             return FusionStats::default();
         };
         let camera_from_world = RigidF32::from_affine(&world_from_camera.inverse());
