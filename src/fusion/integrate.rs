@@ -258,7 +258,8 @@ impl Integrator {
                 stats.merged += update.merged;
             }
         }
-        stats.absorbed = self.absorb_redundant(map, cos_gate);
+        stats.absorbed =
+            absorb_redundant(&mut self.chunks, (&self.best, &self.pixels), map, cos_gate);
         stats.visited = self.visible.iter().map(ExactSizeIterator::len).sum();
         // Which pixels add a surfel is decided in parallel (the map is only
         // read); the surfels are appended in pixel order.
@@ -311,37 +312,53 @@ impl Integrator {
         }
         stats
     }
+}
 
-    /// Merges every candidate that lost its pixel to a more confident
-    /// surfel whose disk holds its centre into that surfel (Keller et al.
-    /// 2013 merge such overlapping points) and marks it [`ABSORBED`].
-    /// Without this, duplicates win the pixel now and then as the camera
-    /// moves, become stable, and the map grows on every revisit (measured,
-    /// TUM fr3/teddy played back and forth for 1500 frames: the stable
-    /// surfels level off at about 0.42 M instead of growing past 1 M).
-    fn absorb_redundant(&self, map: &mut SurfelMap, cos_gate: f32) -> usize {
-        let mut absorbed = 0;
-        for &j in self.chunks.iter().flat_map(|c| &c.losers) {
-            let j = j as usize;
-            let key = self.best[self.pixels[j] as usize].load(Ordering::Relaxed) & 0xffff_ffff;
-            let Some(b) = (key as usize).checked_sub(1) else {
-                continue;
-            };
-            if map.normals[b].dot(map.normals[j]) < cos_gate
-                || (map.positions[b] - map.positions[j]).length() >= map.radii[b]
-            {
-                continue;
-            }
-            let merged = map.surfel(b).merged_with(&map.surfel(j));
-            map.set_surfel(b, &merged);
-            let position = merged.position;
-            map.confidences[j] = ABSORBED;
-            map.grow_bounds(b, position, position);
-            map.first_absorbed = Some(map.first_absorbed.map_or(j, |a| a.min(j)));
-            absorbed += 1;
-        }
-        absorbed
+/// Merges every candidate that lost its pixel to a more confident
+/// surfel whose disk holds its centre into that surfel (Keller et al.
+/// 2013 merge such overlapping points) and marks it [`ABSORBED`].
+/// Without this, duplicates win the pixel now and then as the camera
+/// moves, become stable, and the map grows on every revisit (measured,
+/// TUM fr3/teddy played back and forth for 1500 frames: the stable
+/// surfels level off at about 0.42 M instead of growing past 1 M).
+fn absorb_redundant(
+    chunks: &mut [ChunkUpdate],
+    (best, pixels): (&[AtomicU64], &[u32]),
+    map: &mut SurfelMap,
+    cos_gate: f32,
+) -> usize {
+    let winner = |j: usize| {
+        let key = best[pixels[j] as usize].load(Ordering::Relaxed) & 0xffff_ffff;
+        (key as usize).checked_sub(1)
+    };
+    let on_disk = |map: &SurfelMap, b: usize, j: usize| {
+        map.normals[b].dot(map.normals[j]) >= cos_gate
+            && (map.positions[b] - map.positions[j]).length() < map.radii[b]
+    };
+    // Most losers are not on the winner's disk; finding the few that are
+    // reads the map at random, so it runs in parallel, and only those are
+    // merged one by one.
+    let map_ref = &*map;
+    chunks.par_iter_mut().for_each(|c| {
+        c.losers
+            .retain(|&j| winner(j as usize).is_some_and(|b| on_disk(map_ref, b, j as usize)));
+    });
+    let mut absorbed = 0;
+    for &j in chunks.iter().flat_map(|c| &c.losers) {
+        let j = j as usize;
+        // Checked again: an earlier merge may have moved the winner.
+        let Some(b) = winner(j).filter(|&b| on_disk(map, b, j)) else {
+            continue;
+        };
+        let merged = map.surfel(b).merged_with(&map.surfel(j));
+        map.set_surfel(b, &merged);
+        let position = merged.position;
+        map.confidences[j] = ABSORBED;
+        map.grow_bounds(b, position, position);
+        map.first_absorbed = Some(map.first_absorbed.map_or(j, |a| a.min(j)));
+        absorbed += 1;
     }
+    absorbed
 }
 
 /// Confidence that marks a surfel merged into another one: it is no
