@@ -22,6 +22,12 @@ use super::SurfelMap;
 use glam::Vec3;
 use std::ops::Range;
 
+/// Longest sorted run, surfels: merging stops there, which bounds the
+/// buffers a sort needs (40 bytes per surfel of the run, 5.2 MB, reserved
+/// at the first sort so that memory stays flat once the map is full) while
+/// blocks stay compact (a run spans the scene in 256 blocks or more).
+const MAX_RUN: usize = 1 << 17;
+
 /// Edge of the finest Morton cell, metres.
 const CELL_M: f32 = 0.01;
 
@@ -38,12 +44,13 @@ const HALF_SPAN: i32 = 1 << 20;
 /// surfels form a new sorted run, and the last two runs are sorted together
 /// while the newer is at least half as long as the older: every surfel is
 /// re-sorted O(log n) times in all, and most of the map lies in a few long
-/// runs whose blocks are compact. Measured on TUM fr3/teddy played back and
-/// forth for 1500 frames: late in the run fusion visits 410 k surfels
+/// runs whose blocks are compact. Runs stop merging at `MAX_RUN` surfels,
+/// which bounds the sort's buffers. Measured on TUM fr3/teddy played back
+/// and forth for 1500 frames: late in the run fusion visits 425 k surfels
 /// instead of 470 k (more blocks lie wholly behind the measured surface;
-/// 394 k when every cleanup re-sorts all settled surfels), and sorting
-/// costs 1.2 ms per cleanup on average, 14 ms at most when the longest
-/// runs merge (10 ms per cleanup when re-sorting all settled surfels).
+/// 413 k without the bound, 394 k when every cleanup re-sorts all settled
+/// surfels), and sorting costs 1.1 ms per cleanup on average, 6 ms at most
+/// (10 ms per cleanup when re-sorting all settled surfels).
 #[derive(Debug, Default)]
 pub struct SpatialOrder {
     keys: Vec<(u64, u32)>,
@@ -79,18 +86,23 @@ impl SpatialOrder {
     pub fn settle(&mut self, map: &mut SurfelMap, settled: usize, now_settled: usize) {
         let now_settled = now_settled.min(map.len());
         if self.runs.last().map_or(0, |r| r.end) != settled || settled > now_settled {
-            // The map was cleared or changed elsewhere: start again from one run.
+            // The map was cleared or changed elsewhere: start again.
             self.runs.clear();
-            self.runs.push(0..now_settled);
-            self.sort(map, 0..now_settled);
+            for start in (0..now_settled).step_by(MAX_RUN) {
+                let run = start..(start + MAX_RUN).min(now_settled);
+                self.sort(map, run.clone());
+                self.runs.push(run);
+            }
             return;
         }
         if now_settled == settled {
             return;
         }
-        self.runs.push(settled..now_settled);
+        for start in (settled..now_settled).step_by(MAX_RUN) {
+            self.runs.push(start..(start + MAX_RUN).min(now_settled));
+        }
         while let [.., older, newer] = self.runs.as_slice() {
-            if newer.len() * 2 < older.len() {
+            if newer.len() * 2 < older.len() || older.len() + newer.len() > MAX_RUN {
                 break;
             }
             let merged = older.start..newer.end;
@@ -110,6 +122,11 @@ impl SpatialOrder {
         if range.len() < 2 {
             return;
         }
+        // Sized once for the longest run, so that memory stays flat once the
+        // map is full (tests/node/long_run.test.mjs).
+        let reserve = range.len().max(MAX_RUN);
+        self.keys.reserve(reserve.saturating_sub(self.keys.len()));
+        self.scratch.reserve(reserve);
         self.keys.clear();
         self.keys.extend(
             map.positions[range.clone()]
@@ -216,6 +233,25 @@ mod tests {
         let mut seen = map.first_seen.clone();
         seen.sort_unstable();
         assert_eq!(seen, (0..5000).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn runs_stop_merging_at_the_longest_run() {
+        let n = 3 * MAX_RUN + 5000;
+        let mut map = scattered(n as u32);
+        let mut order = SpatialOrder::default();
+        let mut settled = 0;
+        for now_settled in (20_000..n).step_by(20_000).chain([n]) {
+            order.settle(&mut map, settled, now_settled);
+            settled = now_settled;
+            assert!(
+                order.runs.iter().all(|r| r.len() <= MAX_RUN),
+                "runs {:?}",
+                order.runs
+            );
+        }
+        assert_sorted_runs(&order, &map, n);
+        assert!(order.runs.len() >= 3, "runs {:?}", order.runs);
     }
 
     #[test]

@@ -76,6 +76,16 @@ pub struct ReorderScratch {
     frames: Vec<u32>,
 }
 
+impl ReorderScratch {
+    /// Makes room for reordering `len` surfels without allocating.
+    pub fn reserve(&mut self, len: usize) {
+        self.vectors.reserve(len.saturating_sub(self.vectors.len()));
+        self.colours.reserve(len.saturating_sub(self.colours.len()));
+        self.floats.reserve(len.saturating_sub(self.floats.len()));
+        self.frames.reserve(len.saturating_sub(self.frames.len()));
+    }
+}
+
 /// Reorders `values` so that slot `i` holds the value that was at `source(i)`.
 fn gather<T: Copy>(values: &mut [T], source: impl Fn(usize) -> usize, scratch: &mut Vec<T>) {
     scratch.clear();
