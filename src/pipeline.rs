@@ -508,6 +508,7 @@ impl Pipeline {
                 self.config.depth.max_m,
             );
             fusion.removed = removed_early;
+            self.order.reserve_for(&self.map);
             if index % self.config.fusion.cleanup_interval_frames.max(1) == 0 {
                 fusion.removed +=
                     remove_unstable(&mut self.map, &self.config.fusion, index, &mut self.order);

@@ -23,10 +23,11 @@ use glam::Vec3;
 use std::ops::Range;
 
 /// Longest sorted run, surfels: merging stops there, which bounds the
-/// buffers a sort needs (40 bytes per surfel of the run, 5.2 MB, reserved
-/// at the first sort so that memory stays flat once the map is full) while
-/// blocks stay compact (a run spans the scene in 256 blocks or more).
-const MAX_RUN: usize = 1 << 17;
+/// buffers a sort needs (40 bytes per surfel of the run, at most 10.5 MB)
+/// while blocks stay compact (a run spans the scene in 512 blocks or
+/// more). Capped at 2^17 instead, fusion and prediction took about 1 ms
+/// more late in a 1500-frame TUM fr3/teddy run.
+const MAX_RUN: usize = 1 << 18;
 
 /// Edge of the finest Morton cell, metres.
 const CELL_M: f32 = 0.01;
@@ -61,6 +62,17 @@ pub struct SpatialOrder {
 }
 
 impl SpatialOrder {
+    /// Makes room for sorting the longest run `map` can hold now, so that
+    /// sorting allocates only when the map itself grew (its memory stays
+    /// flat once it is full: tests/node/long_run.test.mjs).
+    pub fn reserve_for(&mut self, map: &SurfelMap) {
+        let longest = map.capacity().min(MAX_RUN);
+        if self.keys.capacity() < longest {
+            self.keys.reserve(longest - self.keys.len());
+            self.scratch.reserve(longest);
+        }
+    }
+
     /// Moves the runs to where they will be once the surfels from `start`
     /// on for which `removed(i)` is true are removed (order preserved).
     /// Call before the removal.
@@ -122,11 +134,6 @@ impl SpatialOrder {
         if range.len() < 2 {
             return;
         }
-        // Sized once for the longest run, so that memory stays flat once the
-        // map is full (tests/node/long_run.test.mjs).
-        let reserve = range.len().max(MAX_RUN);
-        self.keys.reserve(reserve.saturating_sub(self.keys.len()));
-        self.scratch.reserve(reserve);
         self.keys.clear();
         self.keys.extend(
             map.positions[range.clone()]

@@ -169,6 +169,12 @@ impl SurfelMap {
         self.confidences[i] = s.confidence;
     }
 
+    /// Number of surfels the arrays hold without reallocating.
+    #[must_use]
+    pub fn capacity(&self) -> usize {
+        self.positions.capacity()
+    }
+
     /// Number of surfels.
     #[must_use]
     pub fn len(&self) -> usize {
