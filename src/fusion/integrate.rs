@@ -179,6 +179,8 @@ impl Integrator {
                         if map_ref.confidences[j] < 0.0 {
                             continue;
                         }
+                        // Recomputed rather than stored: the vectorised loop
+                        // writes only the pixel, into the buffer the merges read.
                         let z = camera_from_world.point(map_ref.positions[j]).z;
                         let p = level0.vertices[pixel];
                         let n = level0.normals[pixel];

@@ -97,32 +97,25 @@ impl SpatialOrder {
     /// type; the re-sorted range is marked changed and its boxes rebuilt.
     pub fn settle(&mut self, map: &mut SurfelMap, settled: usize, now_settled: usize) {
         let now_settled = now_settled.min(map.len());
+        let mut from = settled;
         if self.runs.last().map_or(0, |r| r.end) != settled || settled > now_settled {
             // The map was cleared or changed elsewhere: start again.
             self.runs.clear();
-            for start in (0..now_settled).step_by(MAX_RUN) {
-                let run = start..(start + MAX_RUN).min(now_settled);
-                self.sort(map, run.clone());
-                self.runs.push(run);
-            }
-            return;
+            from = 0;
         }
-        if now_settled == settled {
-            return;
-        }
-        for start in (settled..now_settled).step_by(MAX_RUN) {
+        for start in (from..now_settled).step_by(MAX_RUN) {
             self.runs.push(start..(start + MAX_RUN).min(now_settled));
-        }
-        while let [.., older, newer] = self.runs.as_slice() {
-            if newer.len() * 2 < older.len() || older.len() + newer.len() > MAX_RUN {
-                break;
+            while let [.., older, newer] = self.runs.as_slice() {
+                if newer.len() * 2 < older.len() || older.len() + newer.len() > MAX_RUN {
+                    break;
+                }
+                let merged = older.start..newer.end;
+                self.runs.truncate(self.runs.len() - 2);
+                self.runs.push(merged);
             }
-            let merged = older.start..newer.end;
-            self.runs.truncate(self.runs.len() - 2);
-            self.runs.push(merged);
-        }
-        if let Some(last) = self.runs.last().cloned() {
-            self.sort(map, last);
+            if let Some(last) = self.runs.last().cloned() {
+                self.sort(map, last);
+            }
         }
     }
 
