@@ -5,9 +5,16 @@
 // for it between frames. Here they run while wasm works, and each frame
 // reaches the SLAM worker as one message, its buffers transferred.
 //
+// Files are read ahead in batches ('readAhead'), not one frame at a time:
+// each read wakes several browser threads (network or blob IPC), and while
+// they run they take the cores from the wasm threads. A batch every
+// READ_BATCH frames leaves the frames in between undisturbed.
+//
 // Messages in:  {type: 'source', id, entries} (a sequence's files, as for
 //               SequenceSource), {type: 'read', id, index, colour, depth,
-//               decode} (relative paths; decode: false = read only).
+//               decode} (relative paths; decode: false = read only),
+//               {type: 'readAhead', id, paths} (read now, keep the bytes for
+//               a later 'read').
 // Messages out: {id, index, colourBuf, depthBuf, decoded} (`decoded`:
 //               {width, height, rgba, preview} or null when wasm is to decode
 //               the colour image; `preview` the page's thumbnail, an
@@ -16,19 +23,42 @@ import { SequenceSource } from './sequence.js';
 import { readAndDecodeColour } from './colour-decode.js';
 
 const sources = new Map(); // sequence id -> SequenceSource (the current one only)
+// path -> promise of its bytes, read ahead for the current sequence; an entry
+// is taken (deleted) by the 'read' that uses it.
+const ahead = new Map();
+
+/** A SequenceSource-like reader that uses (and drops) the bytes read ahead. */
+const cachedReader = (source) => ({
+  read(path) {
+    const bytes = ahead.get(path);
+    if (!bytes) return source.read(path);
+    ahead.delete(path);
+    return bytes;
+  },
+});
 
 self.onmessage = async ({ data }) => {
   if (data.type === 'source') {
     sources.clear();
+    ahead.clear();
     sources.set(data.id, new SequenceSource(data.entries));
+    return;
+  }
+  const source = sources.get(data.id);
+  if (!source) return; // a sequence replaced since: nobody waits for it
+  if (data.type === 'readAhead') {
+    for (const path of data.paths) {
+      if (ahead.has(path)) continue;
+      const bytes = source.read(path);
+      bytes.catch(() => {}); // reported by the 'read' that takes it
+      ahead.set(path, bytes);
+    }
     return;
   }
   if (data.type !== 'read') return;
   const { id, index } = data;
-  const source = sources.get(id);
-  if (!source) return; // a sequence replaced since: nobody waits for it
   try {
-    const frame = await readAndDecodeColour(source, data, data.decode !== false);
+    const frame = await readAndDecodeColour(cachedReader(source), data, data.decode !== false);
     const transfer = [frame.colourBuf, frame.depthBuf];
     if (frame.decoded) transfer.push(frame.decoded.rgba.buffer);
     if (frame.decoded?.preview) transfer.push(frame.decoded.preview);

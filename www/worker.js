@@ -28,6 +28,10 @@ let playing = false;
 let pumping = false;
 const prefetch = new Map(); // `${seq.id}:${index}` -> promise of the frame's bytes and decoded colour
 const PREFETCH_FRAMES = 3; // frames read and decoded ahead of the one in wasm
+// The frame reader reads files further ahead, READ_BATCH frames at a time,
+// at most 2 * READ_BATCH frames ahead (about 20 MB of PNGs at 640x480).
+const READ_BATCH = 16;
+let readAheadUntil = 0; // frames before this index have been asked for
 let framesOk = 0;
 let refreshCursor = 0; // start of the next rolling refresh window (surfel index)
 const REFRESH_SURFELS = 65536;
@@ -120,6 +124,7 @@ function createSlam(newConfig) {
   next = 0;
   framesOk = 0;
   prefetch.clear();
+  readAheadUntil = 0;
 }
 
 function reportState(extra = {}) {
@@ -227,7 +232,19 @@ function startReader() {
 /** Tells the reader about a new sequence (before any read of it). */
 function readerSource(id, entries) {
   readerWaiting.clear();
+  readAheadUntil = 0;
   reader?.postMessage({ type: 'source', id, entries });
+}
+
+/** Has the reader read the next batch of files once fewer than READ_BATCH frames are left read ahead of `index`. */
+function readAhead(index) {
+  if (!reader || readAheadUntil > index + READ_BATCH) return;
+  const from = Math.max(readAheadUntil, index + 1);
+  const to = Math.min(seq.frames.length, index + 1 + 2 * READ_BATCH);
+  if (from >= to) return;
+  const paths = seq.frames.slice(from, to).flatMap((f) => [f.colour, f.depth]);
+  reader.postMessage({ type: 'readAhead', id: seq.id, paths });
+  readAheadUntil = to;
 }
 
 function loadFrame(index) {
@@ -259,6 +276,7 @@ function readFrame(index) {
 /** Starts reading (and decoding) the frames after `index` that are not under way yet. */
 function startPrefetch(index) {
   if (!seq) return;
+  readAhead(index);
   for (let i = index + 1; i <= index + PREFETCH_FRAMES && i < seq.frames.length; i++) {
     const key = `${seq.id}:${i}`;
     if (!prefetch.has(key)) prefetch.set(key, loadFrame(i));
@@ -451,6 +469,7 @@ function resetMap() {
   next = 0;
   framesOk = 0;
   prefetch.clear();
+  readAheadUntil = 0;
 }
 
 // ---- messages -----------------------------------------------------------------

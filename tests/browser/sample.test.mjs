@@ -4,6 +4,8 @@
 // that would leave the origin is aborted (and recorded), so the page is shown
 // to work offline, not only to stay quiet.
 import { test } from 'node:test';
+import fs from 'node:fs';
+import path from 'node:path';
 import assert from 'node:assert/strict';
 import {
   startBrowser,
@@ -15,6 +17,7 @@ import {
   imageStats,
   saveScreenshot,
   skipUnlessReady,
+  WWW,
 } from './helpers.mjs';
 
 const MIN_FRAMES = 40; // of the sample's 44
@@ -93,4 +96,22 @@ test('the blank-canvas check does fail on a blank canvas', () => {
   for (let i = 0; i < data.length; i += 4) data.set([18, 20, 26, 255], i);
   const s = imageStats({ width, height, channels, data });
   assert.ok(s.variance <= 100 && s.nonBackground <= 0.05);
+});
+
+test('the sample files are read ahead in batches, not one frame at a time', { timeout: 120_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const manifest = JSON.parse(fs.readFileSync(path.join(WWW, 'sample/manifest.json'), 'utf8'));
+  const depths = manifest.files.map((f) => f.path).filter((p) => p.includes('/depth/')).sort();
+  const far = depths[20]; // the 21st frame's depth: one batch ahead of the first frames
+  const env = await startBrowser();
+  try {
+    const { page, requests } = await openPage(env, '/');
+    const status = await waitForStatus(page, (s) => s.framesProcessed >= 1, { intervalMs: 50, timeoutMs: 60_000 });
+    const seen = requests.some((u) => u.endsWith(far));
+    t.diagnostic(`after ${status.framesProcessed} frame(s): ${far} ${seen ? 'already requested' : 'not requested'}`);
+    assert.ok(status.framesProcessed >= 1 && status.framesProcessed < 17, `checked early: ${status.framesProcessed} frames`);
+    assert.ok(seen, `${far} is read before frame 17 starts`);
+  } finally {
+    await env.close();
+  }
 });
