@@ -539,12 +539,58 @@ impl RgbdFrame {
     pub fn valid_depth_count(&self) -> usize {
         self.depth_m.iter().filter(|&&d| d > 0.0).count()
     }
+
+    /// Depth resampled to `width` x `height` (each output pixel takes the
+    /// input pixel under its centre), metres, 0 = no measurement, row-major
+    /// into `out`, which is cleared first; a thumbnail for previews. Empty
+    /// when either size is zero.
+    pub fn depth_thumbnail_into(&self, width: usize, height: usize, out: &mut Vec<f32>) {
+        out.clear();
+        if self.width == 0 || self.height == 0 || width == 0 || height == 0 {
+            return;
+        }
+        out.reserve(width * height);
+        for y in 0..height {
+            let sy = ((2 * y + 1) * self.height / (2 * height)).min(self.height - 1);
+            for x in 0..width {
+                let sx = ((2 * x + 1) * self.width / (2 * width)).min(self.width - 1);
+                out.push(
+                    self.depth_m
+                        .get(sy * self.width + sx)
+                        .copied()
+                        .unwrap_or(0.0),
+                );
+            }
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use image::{DynamicImage, ImageBuffer, Luma, Rgb};
+
+    #[test]
+    fn depth_thumbnail_takes_the_pixel_under_each_centre() {
+        let frame = RgbdFrame {
+            width: 4,
+            height: 2,
+            rgb: vec![0; 24],
+            depth_m: vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 0.0, 8.0],
+        };
+        let mut out = vec![9.0];
+        frame.depth_thumbnail_into(2, 1, &mut out);
+        assert_eq!(out, [6.0, 8.0]);
+        frame.depth_thumbnail_into(4, 2, &mut out);
+        assert_eq!(out, frame.depth_m);
+        frame.depth_thumbnail_into(8, 4, &mut out);
+        assert_eq!(out.len(), 32);
+        assert_eq!((out[0], out[7], out[24], out[29]), (1.0, 4.0, 5.0, 0.0));
+        frame.depth_thumbnail_into(0, 3, &mut out);
+        assert!(out.is_empty());
+        RgbdFrame::default().depth_thumbnail_into(2, 2, &mut out);
+        assert!(out.is_empty());
+    }
 
     fn png(img: DynamicImage) -> Vec<u8> {
         let mut out = std::io::Cursor::new(Vec::new());

@@ -240,6 +240,8 @@ pub struct Pipeline {
     half_frame: RgbdFrame,
     /// The last frame decoded by `push_png`, and the decoder's buffers.
     decoded: RgbdFrame,
+    /// `decoded` is the frame of the last push, and that push succeeded.
+    decoded_was_pushed: bool,
     scratch: DecodeScratch,
     map: SurfelMap,
     prediction: Prediction,
@@ -266,6 +268,7 @@ impl Pipeline {
             pyramid,
             half_frame: RgbdFrame::default(),
             decoded: RgbdFrame::default(),
+            decoded_was_pushed: false,
             scratch: DecodeScratch::default(),
             recovery: recovery_tracker(&config.tracker),
             config,
@@ -303,6 +306,14 @@ impl Pipeline {
     /// incremental GPU uploads); see [`SurfelMap::take_changed_range`].
     pub fn take_changed_range(&mut self) -> std::ops::Range<usize> {
         self.map.take_changed_range()
+    }
+
+    /// The frame of the last push when it was decoded here (`push_png`,
+    /// `push_pixels_and_depth_png`) and accepted; `None` after a failed push
+    /// or one of an already decoded frame. Camera frame, input resolution.
+    #[must_use]
+    pub fn last_decoded_frame(&self) -> Option<&RgbdFrame> {
+        self.decoded_was_pushed.then_some(&self.decoded)
     }
 
     /// Number of frames accepted so far.
@@ -377,6 +388,7 @@ impl Pipeline {
             .map_err(PipelineError::from)
             .and_then(|()| self.push_frame(&frame, timestamp));
         self.decoded = frame;
+        self.decoded_was_pushed = pushed.is_ok();
         let mut report = pushed?;
         report.timings.decode_ms = decode_ms;
         report.timings.total_ms += decode_ms;
@@ -464,6 +476,7 @@ impl Pipeline {
         frame: &RgbdFrame,
         timestamp: f64,
     ) -> Result<FrameReport, PipelineError> {
+        self.decoded_was_pushed = false;
         let input = self.config.intrinsics;
         frame.expect_size(input.width, input.height)?;
         frame.validate()?;

@@ -379,6 +379,7 @@ fn rgba_with_depth_png_matches_push_frame() {
     };
     let mut by_png = Slam::new(config_object(&config)).expect("valid config");
     let mut by_pixels = Slam::new(config_object(&config)).expect("valid config");
+    assert_eq!(by_pixels.depth_preview(4, 3).length(), 0, "no frame yet");
     for f in frames.iter().take(5) {
         let d = depth_png(f);
         let a = by_png
@@ -399,6 +400,23 @@ fn rgba_with_depth_png_matches_push_frame() {
         by_png.pipeline().map().colours,
         by_pixels.pipeline().map().colours
     );
+
+    // The preview is the last frame's depth under each thumbnail pixel centre, in metres.
+    let last = &frames[4];
+    let preview = by_pixels.depth_preview(4, 3).to_vec();
+    assert_eq!(preview.len(), 12);
+    let scale = f64::from(config.depth.scale);
+    for (i, &m) in preview.iter().enumerate() {
+        let (x, y) = (i % 4, i / 4);
+        let (sx, sy) = ((2 * x + 1) * w as usize / 8, (2 * y + 1) * h as usize / 6);
+        let raw = f64::from(last.depth[sy * w as usize + sx]);
+        assert!(
+            (f64::from(m) - raw / scale).abs() < 1e-6 || m == 0.0,
+            "{i}: {m} vs {raw}"
+        );
+    }
+    assert!(preview.iter().any(|&m| m > 0.0));
+    assert_eq!(by_pixels.depth_preview(5000, 2).length(), 2048, "clamped");
 
     let f = &frames[5];
     let d = depth_png(f);
@@ -454,6 +472,11 @@ fn rgba_with_depth_png_matches_push_frame() {
         .expect_err("infinite timestamp");
     assert!(err.contains("timestamp"), "{err}");
     assert_eq!(by_pixels.frames(), 5, "failed pushes change nothing");
+    assert_eq!(
+        by_pixels.depth_preview(4, 3).length(),
+        0,
+        "the last push failed"
+    );
     by_pixels
         .push_rgba_depth_png(w, h, &f.rgba, &d, f.timestamp)
         .map_err(message)

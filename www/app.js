@@ -265,7 +265,7 @@ const handlers = {
       renderer.setCameraPose(msg.result.pose, intr);
       anchorGroundTruth(msg.timestamp, msg.result.pose);
     }
-    views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow, msg.input.colourPreview);
+    views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow, msg.input.colourPreview, msg.input.depthPreview);
     if (msg.done) status.done = true;
     syncStatus();
     // How far the display trails the worker (main thread busy drawing or uploading).

@@ -4,9 +4,11 @@
 // Both are decoded by the browser (createImageBitmap, off the main thread);
 // the colour view usually draws the thumbnail the frame reader made while
 // decoding the frame for SLAM (no second decode).
-// A 16-bit depth PNG decodes to 8 bits per channel (the high byte), so the
-// depth view has a resolution of 256 raw units (~5 cm at 5000 units/m):
-// enough for a preview; the SLAM itself reads the full 16 bits in wasm.
+// The depth view shows the thumbnail wasm made of the frame it decoded
+// (metres, full precision). Frames wasm refused are shown from their PNG
+// bytes instead: a 16-bit depth PNG decodes to 8 bits per channel in the
+// browser (the high byte), a resolution of 256 raw units (~5 cm at 5000
+// units/m), enough for a preview.
 
 const VIEW_W = 192;
 const VIEW_H = 144;
@@ -36,11 +38,14 @@ export class InputViews {
     this.range = [0.3, 4.0];
     this.lut = new Uint8ClampedArray(256 * 3);
     this.depthScale = 0;
+    this.metreLut = null; // 256 colours over the depth range, for thumbnails in metres
+    this.depthImage = this.depthCtx.createImageData(VIEW_W, VIEW_H);
   }
 
   setDepthRange(min, max) {
     this.range = [min, max];
-    this.depthScale = 0; // rebuild the lookup table
+    this.depthScale = 0; // rebuild the lookup tables
+    this.metreLut = null;
   }
 
   buildLut(depthScale) {
@@ -59,19 +64,20 @@ export class InputViews {
    * ImageBitmap of the colour image that is drawn instead of decoding the
    * bytes again). Drops frames while a decode is in flight.
    */
-  show(colourBytes, depthBytes, depthScale = 5000, flow = null, colourPreview = null) {
+  show(colourBytes, depthBytes, depthScale = 5000, flow = null, colourPreview = null, depthPreview = null) {
     this.pending?.colourPreview?.close(); // dropped: free its pixels now
-    this.pending = { colourBytes, depthBytes, depthScale: depthScale || 5000, flow, colourPreview };
+    this.pending = { colourBytes, depthBytes, depthScale: depthScale || 5000, flow, colourPreview, depthPreview };
     if (!this.busy) this.drain();
   }
 
   async drain() {
     this.busy = true;
     while (this.pending) {
-      const { colourBytes, depthBytes, depthScale, flow, colourPreview } = this.pending;
+      const { colourBytes, depthBytes, depthScale, flow, colourPreview, depthPreview } = this.pending;
       this.pending = null;
       const colour = colourPreview ? this.drawPreview(colourPreview) : this.drawColour(colourBytes);
-      await Promise.all([colour, this.drawDepth(depthBytes, depthScale)]);
+      const depth = depthPreview?.metres?.length === VIEW_W * VIEW_H ? this.drawDepthMetres(depthPreview.metres) : this.drawDepth(depthBytes, depthScale);
+      await Promise.all([colour, depth]);
       if (flow) this.drawFlow(flow);
     }
     this.busy = false;
@@ -114,6 +120,32 @@ export class InputViews {
     } catch {
       this.placeholder(this.colourCtx, 'cannot decode');
     }
+  }
+
+  /** Draws a VIEW_W x VIEW_H thumbnail of depths in metres (0 = none). */
+  drawDepthMetres(metres) {
+    const [lo, hi] = this.range;
+    if (!this.metreLut) {
+      this.metreLut = new Uint8ClampedArray(256 * 3);
+      for (let v = 0; v < 256; v++) this.metreLut.set(turbo(1 - (v + 0.5) / 256), v * 3);
+      if (this.depthLabel) this.depthLabel.textContent = `depth ${lo.toFixed(1)}-${hi.toFixed(1)} m`;
+    }
+    const lut = this.metreLut;
+    const px = this.depthImage.data;
+    const perMetre = 256 / (hi - lo);
+    for (let i = 0, p = 0; i < metres.length; i++, p += 4) {
+      const m = metres[i];
+      if (m > 0) {
+        const v = 3 * Math.min(255, Math.max(0, Math.floor((m - lo) * perMetre)));
+        px[p] = lut[v];
+        px[p + 1] = lut[v + 1];
+        px[p + 2] = lut[v + 2];
+      } else {
+        px[p] = px[p + 1] = px[p + 2] = 0;
+      }
+      px[p + 3] = 255;
+    }
+    this.depthCtx.putImageData(this.depthImage, 0, 0);
   }
 
   async drawDepth(bytes, depthScale) {

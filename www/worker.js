@@ -14,7 +14,7 @@
 // Messages out: 'ready', 'sequence', 'frame', 'frame-error', 'load-error',
 //               'state', 'ate', 'export', 'fatal'.
 import { SequenceSource } from './sequence.js';
-import { readAndDecodeColour } from './colour-decode.js';
+import { readAndDecodeColour, PREVIEW_WIDTH, PREVIEW_HEIGHT } from './colour-decode.js';
 
 let wasm = null;
 let moduleKind = null;
@@ -338,6 +338,8 @@ async function processNext() {
     return;
   }
   const flowOverlay = flowTracks(colour, decoded);
+  // The depth view's thumbnail at full 16-bit precision, without a second PNG decode.
+  const depthPreview = { width: PREVIEW_WIDTH, height: PREVIEW_HEIGHT, metres: slam.depthPreview(PREVIEW_WIDTH, PREVIEW_HEIGHT) };
   const tPush = performance.now();
   framesOk++;
 
@@ -409,7 +411,13 @@ async function processNext() {
         doneAt: performance.now() + performance.timeOrigin, // fps is measured where the work happens
       },
       // The thumbnail the browser made while decoding (the page need not decode the colour again).
-      input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null, colourPreview: decoded?.preview ?? null },
+      input: {
+        colour: colourBuf,
+        depth: depthBuf,
+        depthScale: config.depthScale ?? null,
+        colourPreview: decoded?.preview ?? null,
+        depthPreview,
+      },
       flow: flowOverlay,
       done: last,
     },
@@ -426,6 +434,7 @@ async function processNext() {
       refresh.confidences.buffer,
       colourBuf,
       depthBuf,
+      depthPreview.metres.buffer,
       ...(decoded?.preview ? [decoded.preview] : []),
     ],
   );

@@ -19,6 +19,8 @@ use crate::pipeline::{Pipeline, PipelineError};
 #[derive(Debug)]
 pub struct Slam {
     pipeline: Pipeline,
+    /// Reused by `depthPreview`.
+    preview: Vec<f32>,
 }
 
 fn js_error(e: &PipelineError) -> JsError {
@@ -84,7 +86,10 @@ impl Slam {
     ) -> Result<Slam, JsError> {
         let cfg = slam_config_from_js(&config).map_err(|m| JsError::new(&m))?;
         let pipeline = Pipeline::new(cfg).map_err(|e| js_error(&e))?;
-        Ok(Slam { pipeline })
+        Ok(Slam {
+            pipeline,
+            preview: Vec::new(),
+        })
     }
 
     /// Decodes a colour image (PNG or JPEG) and a 16-bit depth PNG and
@@ -148,6 +153,20 @@ impl Slam {
             .push_frame(&frame, timestamp)
             .map_err(|e| js_error(&e))?;
         Ok(report_to_js(&report))
+    }
+
+    /// Depth of the last frame pushed with `pushFrame` or `pushRgbaDepthPng`,
+    /// if that push was accepted (else empty), resampled to `width` x
+    /// `height` (each clamped to 1024): metres, 0 = no measurement,
+    /// row-major. For live previews: browsers decode 16-bit PNGs to 8 bits.
+    #[wasm_bindgen(js_name = depthPreview)]
+    pub fn depth_preview(&mut self, width: u32, height: u32) -> Float32Array {
+        let (w, h) = (width.min(1024) as usize, height.min(1024) as usize);
+        match self.pipeline.last_decoded_frame() {
+            Some(frame) => frame.depth_thumbnail_into(w, h, &mut self.preview),
+            None => self.preview.clear(),
+        }
+        Float32Array::from(self.preview.as_slice())
     }
 
     /// Number of surfels in the map.

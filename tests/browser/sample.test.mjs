@@ -57,6 +57,7 @@ test('bundled sample plays with the threaded module and draws the map', { timeou
     const png = await canvasPng(page);
     const file = saveScreenshot('sample-canvas.png', png);
     const pixels = imageStats(decodePng(png));
+    const depthView = imageStats(decodePng(await canvasPng(page, '#depth-view')));
     t.diagnostic(
       `canvas ${file}: luminance variance ${pixels.variance.toFixed(1)}, ` +
         `${(pixels.nonBackground * 100).toFixed(1)} % non-background, ${pixels.distinctColours} colours`,
@@ -73,6 +74,8 @@ test('bundled sample plays with the threaded module and draws the map', { timeou
     assert.ok(status.flowTracks > 20, `flow overlay drew ${status.flowTracks} tracks`);
     assert.ok(Number.isFinite(status.ate) && status.ate < 0.1, `ATE so far ${status.ate} m < 0.1 m`);
     assert.ok(pixels.variance > 100, `canvas is not blank (luminance variance ${pixels.variance.toFixed(1)})`);
+    // The depth view (wasm's thumbnail of the last frame, colour-mapped) shows a scene, not a flat fill.
+    assert.ok(depthView.variance > 100 && depthView.distinctColours > 50, `depth view drawn: ${JSON.stringify(depthView)}`);
     assert.ok(pixels.nonBackground > 0.05, `canvas shows the map (${(pixels.nonBackground * 100).toFixed(1)} % non-background)`);
 
     const foreign = foreignRequests(requests, env.origin);
