@@ -101,6 +101,45 @@ pub fn for_each_in(ranges: &[Range<usize>], f: impl Fn(usize) + Sync + Send) {
     ranges.par_iter().for_each(|r| r.clone().for_each(&f));
 }
 
+/// Calls `f(i, &mut data[i])` for every `i` in `ranges` (sorted, disjoint),
+/// ranges in parallel. Indices past `data` are skipped.
+pub fn for_each_in_mut<T: Send>(
+    ranges: &[Range<usize>],
+    data: &mut [T],
+    f: &(impl Fn(usize, &mut T) + Sync),
+) {
+    for_each_in_mut_from(ranges, data, 0, f);
+}
+
+/// [`for_each_in_mut`] where `data[0]` is element `offset`: splits `data`
+/// between the ranges, halves in parallel.
+fn for_each_in_mut_from<T: Send>(
+    ranges: &[Range<usize>],
+    data: &mut [T],
+    offset: usize,
+    f: &(impl Fn(usize, &mut T) + Sync),
+) {
+    match ranges {
+        [] => {}
+        [r] => {
+            let start = r.start.saturating_sub(offset).min(data.len());
+            let end = r.end.saturating_sub(offset).clamp(start, data.len());
+            for (j, x) in data[start..end].iter_mut().enumerate() {
+                f(offset + start + j, x);
+            }
+        }
+        _ => {
+            let (low, high) = ranges.split_at(ranges.len() / 2);
+            let split = high[0].start.saturating_sub(offset).min(data.len());
+            let (a, b) = data.split_at_mut(split);
+            rayon::join(
+                || for_each_in_mut_from(low, a, offset, f),
+                || for_each_in_mut_from(high, b, offset + split, f),
+            );
+        }
+    }
+}
+
 /// Nearest-surfel buffer of a camera view, one cell per pixel.
 #[derive(Debug, Default)]
 pub struct IndexMap {
@@ -113,7 +152,7 @@ pub struct IndexMap {
     /// Per surfel of the visited ranges: `(depth bits << 32) | cell` from the
     /// first pass, `NOT_PROJECTED` when excluded or outside the image; the
     /// second pass reads it instead of projecting again.
-    projected: Vec<AtomicU64>,
+    projected: Vec<u64>,
 }
 
 /// Marks a surfel the first pass did not put in any cell.
@@ -143,40 +182,37 @@ impl IndexMap {
         confidence_band_m: Option<f32>,
         include: impl Fn(usize) -> bool + Sync,
     ) {
-        self.cells
-            .par_iter()
-            .for_each(|c| c.store(EMPTY, Ordering::Relaxed));
+        // Writes through `&mut` are plain stores: an atomic store is a locked
+        // exchange in threaded wasm, whose atomics are sequentially consistent.
+        self.cells.par_iter_mut().for_each(|c| *c.get_mut() = EMPTY);
         if self.projected.len() < map.len() {
-            self.projected
-                .resize_with(map.len(), || AtomicU64::new(NOT_PROJECTED));
+            self.projected.resize(map.len(), NOT_PROJECTED);
         }
-        let (cells, projected) = (&self.cells, &self.projected);
+        let cells = &self.cells;
         let include = &include;
-        for_each_in(ranges, |i| {
+        for_each_in_mut(ranges, &mut self.projected, &|i, projected: &mut u64| {
             let entry = if include(i) {
                 pixel_of(k, camera_from_world.point(map.positions[i]))
             } else {
                 None
             };
-            let value = entry.map_or(NOT_PROJECTED, |(z, cell)| {
+            *projected = entry.map_or(NOT_PROJECTED, |(z, cell)| {
                 let depth_bits = u64::from(z.to_bits()) << 32;
                 cells[cell].fetch_min(depth_bits | i as u64, Ordering::Relaxed);
                 depth_bits | cell as u64
             });
-            projected[i].store(value, Ordering::Relaxed);
         });
+        let projected = &self.projected;
         let Some(band) = confidence_band_m else {
             return;
         };
         if self.confident.len() != self.cells.len() {
             self.confident = (0..self.cells.len()).map(|_| AtomicU64::new(0)).collect();
         }
-        self.confident
-            .par_iter()
-            .for_each(|c| c.store(0, Ordering::Relaxed));
+        self.confident.par_iter_mut().for_each(|c| *c.get_mut() = 0);
         let confident = &self.confident;
         for_each_in(ranges, |i| {
-            let entry = projected[i].load(Ordering::Relaxed);
+            let entry = projected[i];
             if entry == NOT_PROJECTED {
                 return;
             }
@@ -191,11 +227,12 @@ impl IndexMap {
         });
         // Publish the confident choice as the cell's surfel (depth bits are not used after this).
         self.cells
-            .par_iter()
-            .zip(self.confident.par_iter())
+            .par_iter_mut()
+            .zip(self.confident.par_iter_mut())
             .for_each(|(c, f)| {
-                if c.load(Ordering::Relaxed) != EMPTY {
-                    c.store(f.load(Ordering::Relaxed) & 0xffff_ffff, Ordering::Relaxed);
+                let c = c.get_mut();
+                if *c != EMPTY {
+                    *c = *f.get_mut() & 0xffff_ffff;
                 }
             });
     }
@@ -213,6 +250,30 @@ impl IndexMap {
 mod tests {
     use super::*;
     use glam::{DAffine3, DQuat, DVec3};
+
+    #[test]
+    fn for_each_in_mut_visits_exactly_the_ranges_with_their_own_element() {
+        let ranges = [2..5, 7..8, 9..9, 10..20];
+        let mut data = vec![usize::MAX; 15];
+        for_each_in_mut(&ranges, &mut data, &|i, x: &mut usize| *x = i);
+        let expected: Vec<usize> = (0..15)
+            .map(|i| {
+                if ranges.iter().any(|r| r.contains(&i)) {
+                    i
+                } else {
+                    usize::MAX
+                }
+            })
+            .collect();
+        assert_eq!(data, expected);
+        let many: Vec<Range<usize>> = (0..100).map(|b| 10 * b..10 * b + 3).collect();
+        let mut data = vec![0_usize; 1000];
+        for_each_in_mut(&many, &mut data, &|i, x: &mut usize| *x = i + 1);
+        assert!(data
+            .iter()
+            .enumerate()
+            .all(|(i, &x)| x == if i % 10 < 3 { i + 1 } else { 0 }));
+    }
 
     #[test]
     fn batch_projection_gives_the_pixels_of_pixel_of() {

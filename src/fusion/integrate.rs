@@ -125,9 +125,9 @@ impl Integrator {
         if self.best.len() != n {
             self.best = (0..n).map(|_| AtomicU64::new(0)).collect();
         } else {
-            self.best
-                .par_iter()
-                .for_each(|b| b.store(0, Ordering::Relaxed));
+            // Through `&mut`: plain stores. An atomic store is a locked
+            // exchange in threaded wasm (its atomics are sequentially consistent).
+            self.best.par_iter_mut().for_each(|b| *b.get_mut() = 0);
         }
         self.tiles.build(&level0.vertices, k.width);
         let tiles = &self.tiles;
