@@ -38,6 +38,20 @@ fn ping_pong(i: usize, len: usize) -> usize {
     }
 }
 
+/// Starts of the 100-frame windows of an `n`-step ping-pong run over `len`
+/// frames that play the same frames, in the same direction, as steps
+/// 100-200 (one per loop; empty when a loop is shorter than 200 steps).
+fn same_view_starts(n: usize, len: usize) -> Vec<usize> {
+    let period = 2 * len.saturating_sub(1);
+    if period < 200 {
+        return Vec::new();
+    }
+    (0..)
+        .map(|k| 100 + k * period)
+        .take_while(|&s| s + 100 <= n)
+        .collect()
+}
+
 fn median(values: &mut [f64]) -> f64 {
     values.sort_by(f64::total_cmp);
     values.get(values.len() / 2).copied().unwrap_or(0.0)
@@ -153,6 +167,51 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
             let mut v: Vec<f64> = window.iter().map(|t| t.total_ms).collect();
             median(&mut v)
         };
+        // Every window of 100 frames, to tell the first pass over the scene
+        // (still being mapped) from revisits of a bigger map.
+        let per_window = |value: &dyn Fn(usize) -> f64| {
+            (0..n / 100)
+                .map(|w| {
+                    let mut v: Vec<f64> = (100 * w..100 * (w + 1)).map(value).collect();
+                    format!("{:.1}", median(&mut v))
+                })
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        println!(
+            "windows_ms_per_frame: {}",
+            per_window(&|i| timings[i].total_ms)
+        );
+        println!(
+            "windows_k_visited_by_fusion: {}",
+            per_window(&|i| sizes[i].1 / 1e3)
+        );
+        // Frames 100-200 and the same views on each later pass in the same
+        // direction: the cost of one view as the map grows around it.
+        let starts = same_view_starts(n, sequence.frames.len());
+        if starts.len() > 1 {
+            let same = |value: &dyn Fn(usize) -> f64| {
+                starts
+                    .iter()
+                    .map(|&s| {
+                        let mut v: Vec<f64> = (s..s + 100).map(value).collect();
+                        format!("{:.1}", median(&mut v))
+                    })
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            let at: Vec<String> = starts.iter().map(|s| format!("{s}-{}", s + 100)).collect();
+            println!("same_views_frames: {}", at.join(" "));
+            println!(
+                "same_views_ms_per_frame: {}",
+                same(&|i| timings[i].total_ms)
+            );
+            println!("same_views_k_surfels: {}", same(&|i| sizes[i].0 / 1e3));
+            println!(
+                "same_views_k_visited_by_fusion: {}",
+                same(&|i| sizes[i].1 / 1e3)
+            );
+        }
         let (early, late) = (total(early), total(late));
         println!(
             "median_ms_frames_100_200: {early:.2}\nmedian_ms_frames_{}_{n}: {late:.2}\nlate_over_early: {:.3}",
@@ -171,7 +230,18 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use super::ping_pong;
+    use super::{ping_pong, same_view_starts};
+
+    #[test]
+    fn same_view_windows_play_the_frames_of_steps_100_to_200() {
+        let starts = same_view_starts(1500, 193);
+        assert_eq!(starts, [100, 484, 868, 1252]);
+        for s in starts {
+            assert!((0..100).all(|j| ping_pong(s + j, 193) == ping_pong(100 + j, 193)));
+        }
+        assert_eq!(same_view_starts(1500, 100), Vec::<usize>::new());
+        assert_eq!(same_view_starts(300, 193), [100]);
+    }
 
     #[test]
     fn ping_pong_turns_at_both_ends() {
