@@ -309,8 +309,8 @@ impl Pipeline {
     }
 
     /// The frame of the last push when it was decoded here (`push_png`,
-    /// `push_pixels_and_depth_png`) and accepted; `None` after a failed push
-    /// or one of an already decoded frame. Camera frame, input resolution.
+    /// `push_pixels_and_depth_png`) and accepted; `None` after a failed push,
+    /// a push of an already decoded frame, or a reset. Input resolution.
     #[must_use]
     pub fn last_decoded_frame(&self) -> Option<&RgbdFrame> {
         self.decoded_was_pushed.then_some(&self.decoded)
@@ -336,6 +336,7 @@ impl Pipeline {
         self.frame_index = 0;
         self.counts = VerdictCounts::default();
         self.prediction.valid = 0;
+        self.decoded_was_pushed = false;
     }
 
     /// Decodes colour and depth image bytes and processes the frame.
