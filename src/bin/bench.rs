@@ -52,6 +52,18 @@ fn same_view_starts(n: usize, len: usize) -> Vec<usize> {
         .collect()
 }
 
+/// Medians of `value` over the 100 frames from each of `starts`, one decimal, space-separated.
+fn window_medians(starts: &[usize], value: impl Fn(usize) -> f64) -> String {
+    starts
+        .iter()
+        .map(|&s| {
+            let mut v: Vec<f64> = (s..s + 100).map(&value).collect();
+            format!("{:.1}", median(&mut v))
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 fn median(values: &mut [f64]) -> f64 {
     values.sort_by(f64::total_cmp);
     values.get(values.len() / 2).copied().unwrap_or(0.0)
@@ -169,47 +181,32 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         };
         // Every window of 100 frames, to tell the first pass over the scene
         // (still being mapped) from revisits of a bigger map.
-        let per_window = |value: &dyn Fn(usize) -> f64| {
-            (0..n / 100)
-                .map(|w| {
-                    let mut v: Vec<f64> = (100 * w..100 * (w + 1)).map(value).collect();
-                    format!("{:.1}", median(&mut v))
-                })
-                .collect::<Vec<_>>()
-                .join(" ")
-        };
-        println!(
-            "windows_ms_per_frame: {}",
-            per_window(&|i| timings[i].total_ms)
-        );
+        let every: Vec<usize> = (0..n / 100).map(|w| 100 * w).collect();
+        let total_ms = |i: usize| timings[i].total_ms;
+        let k_surfels = |i: usize| sizes[i].0 / 1e3;
+        let k_visited = |i: usize| sizes[i].1 / 1e3;
+        println!("windows_ms_per_frame: {}", window_medians(&every, total_ms));
         println!(
             "windows_k_visited_by_fusion: {}",
-            per_window(&|i| sizes[i].1 / 1e3)
+            window_medians(&every, k_visited)
         );
         // Frames 100-200 and the same views on each later pass in the same
         // direction: the cost of one view as the map grows around it.
         let starts = same_view_starts(n, sequence.frames.len());
         if starts.len() > 1 {
-            let same = |value: &dyn Fn(usize) -> f64| {
-                starts
-                    .iter()
-                    .map(|&s| {
-                        let mut v: Vec<f64> = (s..s + 100).map(value).collect();
-                        format!("{:.1}", median(&mut v))
-                    })
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            };
             let at: Vec<String> = starts.iter().map(|s| format!("{s}-{}", s + 100)).collect();
             println!("same_views_frames: {}", at.join(" "));
             println!(
                 "same_views_ms_per_frame: {}",
-                same(&|i| timings[i].total_ms)
+                window_medians(&starts, total_ms)
             );
-            println!("same_views_k_surfels: {}", same(&|i| sizes[i].0 / 1e3));
+            println!(
+                "same_views_k_surfels: {}",
+                window_medians(&starts, k_surfels)
+            );
             println!(
                 "same_views_k_visited_by_fusion: {}",
-                same(&|i| sizes[i].1 / 1e3)
+                window_medians(&starts, k_visited)
             );
         }
         let (early, late) = (total(early), total(late));
