@@ -39,15 +39,16 @@ fn ping_pong(i: usize, len: usize) -> usize {
 }
 
 /// Starts of the 100-frame windows of an `n`-step ping-pong run over `len`
-/// frames that play the same frames, in the same direction, as steps
-/// 100-200 (one per loop; empty when a loop is shorter than 200 steps).
-fn same_view_starts(n: usize, len: usize) -> Vec<usize> {
+/// frames that play the same frames, in the same direction, as the window
+/// starting at step `start` (one per loop, earliest first; empty when a
+/// loop is shorter than 200 steps).
+fn same_view_starts(start: usize, n: usize, len: usize) -> Vec<usize> {
     let period = 2 * len.saturating_sub(1);
     if period < 200 {
         return Vec::new();
     }
     (0..)
-        .map(|k| 100 + k * period)
+        .map(|k| start % period + k * period)
         .take_while(|&s| s + 100 <= n)
         .collect()
 }
@@ -198,7 +199,10 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         );
         // Frames 100-200 and the same views on each later pass in the same
         // direction: the cost of one view as the map grows around it.
-        let starts = same_view_starts(n, sequence.frames.len());
+        let starts: Vec<usize> = same_view_starts(100, n, sequence.frames.len())
+            .into_iter()
+            .filter(|&s| s >= 100)
+            .collect();
         if starts.len() > 1 {
             let at: Vec<String> = starts.iter().map(|s| format!("{s}-{}", s + 100)).collect();
             println!("same_views_frames: {}", at.join(" "));
@@ -213,6 +217,30 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
             println!(
                 "same_views_k_visited_by_fusion: {}",
                 window_medians(&starts, k_visited)
+            );
+        }
+        // The same views as the last 100 frames, in the same direction, on
+        // each pass: once the first pass has mapped the scene, the cost of
+        // one view as the map keeps growing around it.
+        let late_starts = same_view_starts(n - 100, n, sequence.frames.len());
+        if let [first, .., _] = late_starts[..] {
+            let at: Vec<String> = late_starts
+                .iter()
+                .map(|s| format!("{s}-{}", s + 100))
+                .collect();
+            println!("late_views_frames: {}", at.join(" "));
+            println!(
+                "late_views_ms_per_frame: {}",
+                window_medians(&late_starts, total_ms)
+            );
+            println!(
+                "late_views_k_surfels: {}",
+                window_medians(&late_starts, k_surfels)
+            );
+            let mut earliest: Vec<f64> = (first..first + 100).map(total_ms).collect();
+            println!(
+                "late_over_its_first_revisit: {:.3}",
+                total(late) / median(&mut earliest).max(1e-9)
             );
         }
         // The last 100 frames show other views than frames 100-200, and
@@ -262,14 +290,21 @@ mod tests {
     }
 
     #[test]
-    fn same_view_windows_play_the_frames_of_steps_100_to_200() {
-        let starts = same_view_starts(1500, 193);
+    fn same_view_windows_play_the_frames_of_the_given_window() {
+        let starts = same_view_starts(100, 1500, 193);
         assert_eq!(starts, [100, 484, 868, 1252]);
         for s in starts {
             assert!((0..100).all(|j| ping_pong(s + j, 193) == ping_pong(100 + j, 193)));
         }
-        assert_eq!(same_view_starts(1500, 100), Vec::<usize>::new());
-        assert_eq!(same_view_starts(300, 193), [100]);
+        assert_eq!(same_view_starts(100, 1500, 100), Vec::<usize>::new());
+        assert_eq!(same_view_starts(100, 300, 193), [100]);
+        // The last 100 steps of a 1500-step run over teddy's 193 frames play
+        // frames 136 down to 37, as steps 248-348 did on the first way back.
+        let late = same_view_starts(1400, 1500, 193);
+        assert_eq!(late, [248, 632, 1016, 1400]);
+        for s in late {
+            assert!((0..100).all(|j| ping_pong(s + j, 193) == ping_pong(1400 + j, 193)));
+        }
     }
 
     #[test]
