@@ -37,6 +37,14 @@ vec3 turbo(float x) {
 }
 
 void main() {
+  // Absorbed into another surfel (negative confidence): gone from the map at
+  // the next compaction; hidden as soon as its confidence reaches the GPU.
+  if (aConfidence < 0.0) {
+    gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+    gl_PointSize = 0.0;
+    vColour = vec3(0.0);
+    return;
+  }
   vec4 eye = uView * vec4(aPosition, 1.0);
   gl_Position = uProj * eye;
   float z = max(-eye.z, 1e-3);
