@@ -197,46 +197,28 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
             "windows_k_visited_by_fusion: {}",
             window_medians(&every, k_visited)
         );
-        // Frames 100-200 and the same views on each later pass in the same
-        // direction: the cost of one view as the map grows around it.
-        let starts: Vec<usize> = same_view_starts(100, n, sequence.frames.len())
-            .into_iter()
-            .filter(|&s| s >= 100)
-            .collect();
-        if starts.len() > 1 {
+        // The windows of `starts` (the same views in the same direction):
+        // the cost of one view as the map grows around it.
+        let print_series = |name: &str, starts: &[usize]| {
             let at: Vec<String> = starts.iter().map(|s| format!("{s}-{}", s + 100)).collect();
-            println!("same_views_frames: {}", at.join(" "));
+            println!("{name}_frames: {}", at.join(" "));
+            println!("{name}_ms_per_frame: {}", window_medians(starts, total_ms));
+            println!("{name}_k_surfels: {}", window_medians(starts, k_surfels));
             println!(
-                "same_views_ms_per_frame: {}",
-                window_medians(&starts, total_ms)
+                "{name}_k_visited_by_fusion: {}",
+                window_medians(starts, k_visited)
             );
-            println!(
-                "same_views_k_surfels: {}",
-                window_medians(&starts, k_surfels)
-            );
-            println!(
-                "same_views_k_visited_by_fusion: {}",
-                window_medians(&starts, k_visited)
-            );
+        };
+        // Frames 100-200 and the same views on each later pass.
+        let starts = same_view_starts(100, n, sequence.frames.len());
+        if starts.len() > 1 {
+            print_series("same_views", &starts);
         }
-        // The same views as the last 100 frames, in the same direction, on
-        // each pass: once the first pass has mapped the scene, the cost of
-        // one view as the map keeps growing around it.
+        // The last 100 frames' views on each pass: from the first way back
+        // on, the scene is mapped and only the map's growth remains.
         let late_starts = same_view_starts(n - 100, n, sequence.frames.len());
         if let [first, .., _] = late_starts[..] {
-            let at: Vec<String> = late_starts
-                .iter()
-                .map(|s| format!("{s}-{}", s + 100))
-                .collect();
-            println!("late_views_frames: {}", at.join(" "));
-            println!(
-                "late_views_ms_per_frame: {}",
-                window_medians(&late_starts, total_ms)
-            );
-            println!(
-                "late_views_k_surfels: {}",
-                window_medians(&late_starts, k_surfels)
-            );
+            print_series("late_views", &late_starts);
             let mut earliest: Vec<f64> = (first..first + 100).map(total_ms).collect();
             println!(
                 "late_over_its_first_revisit: {:.3}",
