@@ -49,6 +49,8 @@ test('surfels absorbed into others (negative confidence) are not drawn', { timeo
   try {
     // Any page of the server's origin, so that the module imports resolve.
     const page = await env.context.newPage();
+    // The bare documents have no icon link, so Chromium asks for /favicon.ico.
+    await page.route('**/favicon.ico', (route) => route.fulfill({ status: 204 }));
     await page.goto(new URL('/renderer.js', env.server.url).href);
     await page.setContent('<!doctype html><body></body>');
     const consoleErrors = [];
