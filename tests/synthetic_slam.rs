@@ -98,6 +98,52 @@ fn fusing_a_static_noisy_view_converges_to_the_surface() {
 }
 
 #[test]
+fn settled_surfels_are_no_longer_moved_by_merges() {
+    let k = small_intrinsics();
+    let scene = Scene::room();
+    let pose = synthetic::trajectory_pose(0);
+    // Surfels of confidence >= 3 before the 10th view of a static noisy
+    // scene, and how many of them that view moved. No cleanup runs between
+    // (it renumbers surfels), the next one being at frame 10.
+    let moved_by_tenth_view = |settled_confidence: f32| {
+        let mut config = synthetic_config(k);
+        config.fusion.settled_confidence = settled_confidence;
+        let mut slam = Pipeline::new(config.clone()).expect("config");
+        let mut before = Vec::new();
+        for i in 0..10u64 {
+            let map = slam.map();
+            before = (0..map.len())
+                .filter(|&s| map.confidences[s] >= 3.0)
+                .map(|s| (s, map.positions[s]))
+                .collect();
+            let f = synthetic::render(&scene, &k, &pose, &NoiseModel::kinect(), 200 + i)
+                .to_frame(&config.depth)
+                .expect("frame");
+            let r = slam.push_frame(&f, i as f64).expect("push");
+            assert_ne!(r.verdict.name(), "lost", "static frame {i} lost");
+        }
+        let map = slam.map();
+        assert!(map.all_finite());
+        let moved = before
+            .iter()
+            .filter(|&&(s, p)| map.positions[s] != p)
+            .count();
+        (before.len(), moved)
+    };
+    let (settled, moved) = moved_by_tenth_view(3.0);
+    assert!(
+        settled > k.pixel_count() / 4,
+        "only {settled} settled surfels"
+    );
+    assert_eq!(moved, 0, "{moved} of {settled} settled surfels moved");
+    let (merging, moved) = moved_by_tenth_view(f32::INFINITY);
+    assert!(
+        moved > merging / 2,
+        "without the limit only {moved} of {merging} surfels moved"
+    );
+}
+
+#[test]
 fn pipeline_follows_the_known_trajectory_noise_free() {
     let (slam, reports, truth) = run_synthetic(small_intrinsics(), 60, NoiseModel::none());
     assert_eq!(lost_count(&reports), 0);

@@ -99,6 +99,52 @@ fn stage_medians(timings: &[StageTimings]) -> Vec<(&'static str, f64)> {
     ]
 }
 
+/// Steps played by the twin run between two runs of the main run's last
+/// 100 steps: short enough that a slow spell of the machine (seconds) falls
+/// on both windows alike, long enough that each turn starts with the map
+/// mostly in cache.
+const INTERLEAVE: usize = 25;
+
+/// Verdicts of a run that are not plain tracking.
+#[derive(Default)]
+struct Counts {
+    lost: usize,
+    recovered: usize,
+    failed: usize,
+}
+
+/// Plays step `i` of the ping-pong loop over `frames` (colour and depth
+/// PNG bytes) on `slam`: its timings, surfels in the map and surfels visited
+/// by fusion, or `None` when the frame was refused.
+fn play(
+    slam: &mut Pipeline,
+    frames: &[(Vec<u8>, Vec<u8>)],
+    sequence: &Sequence,
+    i: usize,
+    counts: &mut Counts,
+) -> Option<(StageTimings, (f64, f64))> {
+    let k = ping_pong(i, frames.len());
+    let (colour, depth) = &frames[k];
+    match slam.push_png(colour, depth, sequence.frames[k].timestamp) {
+        Ok(report) => {
+            match report.verdict {
+                Verdict::Lost(_) => counts.lost += 1,
+                Verdict::Recovered => counts.recovered += 1,
+                _ => {}
+            }
+            Some((
+                report.timings,
+                (report.surfels as f64, report.fusion.visited as f64),
+            ))
+        }
+        Err(e) => {
+            counts.failed += 1;
+            eprintln!("frame {i} ({}) skipped: {e}", sequence.frames[k].colour);
+            None
+        }
+    }
+}
+
 pub fn bench(args: &BenchArgs) -> Result<()> {
     let sequence = Sequence::open(&args.dataset)
         .with_context(|| format!("opening {}", args.dataset.display()))?;
@@ -120,31 +166,44 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         .context("decoding the first frame")?;
     config.intrinsics.width = first.width;
     config.intrinsics.height = first.height;
-    let mut slam = Pipeline::new(config)?;
+    let mut slam = Pipeline::new(config.clone())?;
 
     let mut timings = Vec::with_capacity(total);
     // Per frame: surfels in the map and surfels visited by fusion.
     let mut sizes: Vec<(f64, f64)> = Vec::with_capacity(total);
-    let (mut lost, mut recovered, mut failed) = (0usize, 0usize, 0usize);
+    let mut counts = Counts::default();
+    // A second run of the same frames whose steps 100-200 are played
+    // between the main run's last 100 steps, a few at a time.
+    let mut twin: Option<Pipeline> = None;
+    let mut twin_steps: Vec<(StageTimings, (f64, f64))> = Vec::with_capacity(100);
+    let late_start = total.saturating_sub(100);
     for i in 0..total {
-        let k = ping_pong(i, sequence.frames.len());
-        let (colour, depth) = &bytes[k];
-        match slam.push_png(colour, depth, sequence.frames[k].timestamp) {
-            Ok(report) => {
-                match report.verdict {
-                    Verdict::Lost(_) => lost += 1,
-                    Verdict::Recovered => recovered += 1,
-                    _ => {}
+        if total >= 400 && i >= late_start && (i - late_start) % INTERLEAVE == 0 {
+            let twin = match &mut twin {
+                Some(t) => t,
+                None => {
+                    let mut t = Pipeline::new(config.clone())?;
+                    for s in 0..100 {
+                        play(&mut t, &bytes, &sequence, s, &mut Counts::default());
+                    }
+                    twin.insert(t)
                 }
-                timings.push(report.timings);
-                sizes.push((report.surfels as f64, report.fusion.visited as f64));
-            }
-            Err(e) => {
-                failed += 1;
-                eprintln!("frame {i} ({}) skipped: {e}", sequence.frames[k].colour);
+            };
+            let s = 100 + i - late_start;
+            for s in s..s + INTERLEAVE {
+                twin_steps.extend(play(twin, &bytes, &sequence, s, &mut Counts::default()));
             }
         }
+        if let Some(step) = play(&mut slam, &bytes, &sequence, i, &mut counts) {
+            timings.push(step.0);
+            sizes.push(step.1);
+        }
     }
+    let Counts {
+        lost,
+        recovered,
+        failed,
+    } = counts;
 
     let size = slam.config().intrinsics;
     println!(
@@ -246,6 +305,21 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
             n - 100,
             late / early.max(1e-9)
         );
+        // The same comparison with the two windows played in turns, so that
+        // the machine's slow spells fall on both alike; the twin run must
+        // have done exactly the work of the main run's steps 100-200.
+        if twin_steps.len() == 100 {
+            let same_work = twin_steps
+                .iter()
+                .map(|t| t.1)
+                .eq(sizes[100..200].iter().copied());
+            let mut twin_ms: Vec<f64> = twin_steps.iter().map(|t| t.0.total_ms).collect();
+            let twin_early = median(&mut twin_ms);
+            println!(
+                "interleaved_same_work: {same_work}\ninterleaved_ms_frames_100_200: {twin_early:.2}\ninterleaved_late_over_early: {:.3}",
+                late / twin_early.max(1e-9)
+            );
+        }
     }
     match peak_rss_mib() {
         Some(mib) => println!("peak_rss_mib: {mib:.1}"),

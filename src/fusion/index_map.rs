@@ -1,25 +1,21 @@
 //! Index map: the surfels of the map projected into a camera, one pixel per
-//! surfel centre, nearest first: the z-buffer behind the model prediction.
-//! Each pixel holds `(depth bits << 32) | surfel index`, so an atomic
-//! `fetch_min` keeps the nearest surfel while surfels are projected in
-//! parallel. Only the blocks of the map inside the view frustum are visited.
+//! surfel centre: the z-buffer behind the model prediction. A first pass
+//! keeps each pixel's nearest depth with an atomic `fetch_min` while
+//! surfels are projected in parallel; a second keeps, per pixel, the most
+//! confident surfel within a depth band of that nearest one. Only the blocks
+//! of the map inside the view frustum are visited.
 //!
-//! With a `confidence_band_m`, a second pass keeps, per cell, the most
-//! confident surfel within that depth of the nearest one. Picking the nearest
-//! of several overlapping noisy surfels picks the one whose noise pulls it
-//! towards the camera, so the predicted surface would sit in front of the
-//! true one and tracking against it would drift; confidence is not
-//! correlated with that noise.
+//! Picking the nearest of several overlapping noisy surfels picks the one
+//! whose noise pulls it towards the camera, so the predicted surface would
+//! sit in front of the true one and tracking against it would drift;
+//! confidence is not correlated with that noise.
 
 use crate::camera::Intrinsics;
 use crate::fusion::SurfelMap;
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 use std::ops::Range;
-use std::sync::atomic::{AtomicU64, Ordering};
-
-/// Empty cell marker.
-pub const EMPTY: u64 = u64::MAX;
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 
 /// A rigid transform in f32 for per-point loops (`rotation * p + translation`).
 #[derive(Debug, Clone, Copy)]
@@ -147,8 +143,12 @@ pub struct IndexMap {
     pub width: usize,
     /// Height, pixels.
     pub height: usize,
-    cells: Vec<AtomicU64>,
-    confident: Vec<AtomicU64>,
+    /// Per pixel, the bits of the nearest projected depth (positive floats
+    /// order like their bits), `NO_DEPTH` when none.
+    nearest: Vec<AtomicU32>,
+    /// Per pixel, `(confidence bits << 32) | (surfel index + 1)` of the
+    /// chosen surfel, 0 when none.
+    chosen: Vec<AtomicU64>,
     /// Per surfel of the visited ranges: `(depth bits << 32) | cell` from the
     /// first pass, `NOT_PROJECTED` when excluded or outside the image; the
     /// second pass reads it instead of projecting again.
@@ -158,37 +158,44 @@ pub struct IndexMap {
 /// Marks a surfel the first pass did not put in any cell.
 const NOT_PROJECTED: u64 = u64::MAX;
 
+/// Marks a cell no surfel projects into.
+const NO_DEPTH: u32 = u32::MAX;
+
 impl IndexMap {
-    /// Allocates (or reuses) the buffer for an image of `k`'s size.
+    /// Allocates (or reuses) the buffers for an image of `k`'s size.
     pub fn resize(&mut self, k: &Intrinsics) {
         self.width = k.width;
         self.height = k.height;
         let n = self.width * self.height;
-        if self.cells.len() != n {
-            self.cells = (0..n).map(|_| AtomicU64::new(EMPTY)).collect();
+        if self.nearest.len() != n {
+            self.nearest = (0..n).map(|_| AtomicU32::new(NO_DEPTH)).collect();
+            self.chosen = (0..n).map(|_| AtomicU64::new(0)).collect();
         }
     }
 
     /// Projects the centres of the surfels in `ranges` selected by `include`
-    /// into the view `camera_from_world`, one pixel each. With
-    /// `confidence_band_m`, each pixel ends up with the most confident surfel
-    /// within that depth of the nearest one instead of the nearest.
+    /// into the view `camera_from_world`, one pixel each; each pixel ends up
+    /// with the most confident surfel within `confidence_band_m` (metres)
+    /// of the nearest one.
     pub fn render(
         &mut self,
         map: &SurfelMap,
         ranges: &[Range<usize>],
         camera_from_world: &RigidF32,
         k: &Intrinsics,
-        confidence_band_m: Option<f32>,
+        confidence_band_m: f32,
         include: impl Fn(usize) -> bool + Sync,
     ) {
         // Writes through `&mut` are plain stores: an atomic store is a locked
         // exchange in threaded wasm, whose atomics are sequentially consistent.
-        self.cells.par_iter_mut().for_each(|c| *c.get_mut() = EMPTY);
+        self.nearest
+            .par_iter_mut()
+            .for_each(|c| *c.get_mut() = NO_DEPTH);
+        self.chosen.par_iter_mut().for_each(|c| *c.get_mut() = 0);
         if self.projected.len() < map.len() {
             self.projected.resize(map.len(), NOT_PROJECTED);
         }
-        let cells = &self.cells;
+        let nearest = &self.nearest;
         let include = &include;
         for_each_in_mut(ranges, &mut self.projected, &|i, projected: &mut u64| {
             let entry = if include(i) {
@@ -197,20 +204,11 @@ impl IndexMap {
                 None
             };
             *projected = entry.map_or(NOT_PROJECTED, |(z, cell)| {
-                let depth_bits = u64::from(z.to_bits()) << 32;
-                cells[cell].fetch_min(depth_bits | i as u64, Ordering::Relaxed);
-                depth_bits | cell as u64
+                nearest[cell].fetch_min(z.to_bits(), Ordering::Relaxed);
+                (u64::from(z.to_bits()) << 32) | cell as u64
             });
         });
-        let projected = &self.projected;
-        let Some(band) = confidence_band_m else {
-            return;
-        };
-        if self.confident.len() != self.cells.len() {
-            self.confident = (0..self.cells.len()).map(|_| AtomicU64::new(0)).collect();
-        }
-        self.confident.par_iter_mut().for_each(|c| *c.get_mut() = 0);
-        let confident = &self.confident;
+        let (projected, chosen) = (&self.projected, &self.chosen);
         for_each_in(ranges, |i| {
             let entry = projected[i];
             if entry == NOT_PROJECTED {
@@ -218,31 +216,21 @@ impl IndexMap {
             }
             let z = f32::from_bits((entry >> 32) as u32);
             let cell = (entry & 0xffff_ffff) as usize;
-            let nearest = f32::from_bits((cells[cell].load(Ordering::Relaxed) >> 32) as u32);
-            if z <= nearest + band {
+            let near = f32::from_bits(nearest[cell].load(Ordering::Relaxed));
+            if z <= near + confidence_band_m {
                 // Confidences are positive, so their bit patterns order like the values.
-                let key = (u64::from(map.confidences[i].max(0.0).to_bits()) << 32) | i as u64;
-                confident[cell].fetch_max(key, Ordering::Relaxed);
+                let key = (u64::from(map.confidences[i].max(0.0).to_bits()) << 32) | (i as u64 + 1);
+                chosen[cell].fetch_max(key, Ordering::Relaxed);
             }
         });
-        // Publish the confident choice as the cell's surfel (depth bits are not used after this).
-        self.cells
-            .par_iter_mut()
-            .zip(self.confident.par_iter_mut())
-            .for_each(|(c, f)| {
-                let c = c.get_mut();
-                if *c != EMPTY {
-                    *c = *f.get_mut() & 0xffff_ffff;
-                }
-            });
     }
 
-    /// The surfel index stored in cell (x, y), if any.
+    /// The surfel index chosen for cell (x, y), if any.
     #[inline]
     #[must_use]
     pub fn surfel_at(&self, x: usize, y: usize) -> Option<usize> {
-        let key = self.cells.get(y * self.width + x)?.load(Ordering::Relaxed);
-        (key != EMPTY).then_some((key & 0xffff_ffff) as usize)
+        let key = self.chosen.get(y * self.width + x)?.load(Ordering::Relaxed);
+        ((key & 0xffff_ffff) as usize).checked_sub(1)
     }
 }
 

@@ -27,7 +27,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// What one fusion step did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FusionStats {
-    /// Measurements merged into existing surfels.
+    /// Measurements merged into existing surfels (or matched to a settled
+    /// one, see `FusionConfig::settled_confidence`).
     pub merged: usize,
     /// New surfels added.
     pub added: usize,
@@ -244,11 +245,14 @@ impl Integrator {
                     update.losers.push(j as u32);
                     continue;
                 }
-                let p = merge(&mut chunk, local, &measure(pixel as usize), frame);
+                update.merged += 1;
+                if chunk.confidences[local] >= config.settled_confidence {
+                    continue;
+                }
+                let p = merge(&mut chunk, local, &measure(pixel as usize));
                 let block = local / BLOCK;
                 update.min[block] = update.min[block].min(p);
                 update.max[block] = update.max[block].max(p);
-                update.merged += 1;
             }
         });
         let mut stats = FusionStats::default();
@@ -261,7 +265,7 @@ impl Integrator {
             }
         }
         stats.absorbed =
-            absorb_redundant(&mut self.chunks, (&self.best, &self.pixels), map, cos_gate);
+            absorb_redundant(&mut self.chunks, (&self.best, &self.pixels), map, config);
         stats.visited = self.visible.iter().map(ExactSizeIterator::len).sum();
         // Which pixels add a surfel is decided in parallel (the map is only
         // read); the surfels are appended in pixel order.
@@ -327,8 +331,9 @@ fn absorb_redundant(
     chunks: &mut [ChunkUpdate],
     (best, pixels): (&[AtomicU64], &[u32]),
     map: &mut SurfelMap,
-    cos_gate: f32,
+    config: &FusionConfig,
 ) -> usize {
+    let cos_gate = config.normal_gate_deg.to_radians().cos();
     let winner = |j: usize| {
         let key = best[pixels[j] as usize].load(Ordering::Relaxed) & 0xffff_ffff;
         (key as usize).checked_sub(1)
@@ -352,11 +357,13 @@ fn absorb_redundant(
         let Some(b) = winner(j).filter(|&b| on_disk(map, b, j)) else {
             continue;
         };
-        let merged = map.surfel(b).merged_with(&map.surfel(j));
-        map.set_surfel(b, &merged);
-        let position = merged.position;
+        // A settled surfel keeps its place (`FusionConfig::settled_confidence`).
+        if map.confidences[b] < config.settled_confidence {
+            let merged = map.surfel(b).merged_with(&map.surfel(j));
+            map.set_surfel(b, &merged);
+            map.grow_bounds(b, merged.position, merged.position);
+        }
         map.confidences[j] = ABSORBED;
-        map.grow_bounds(b, position, position);
         map.first_absorbed = Some(map.first_absorbed.map_or(j, |a| a.min(j)));
         absorbed += 1;
     }
@@ -410,12 +417,11 @@ fn covered_by_neighbour(
 }
 
 /// Merges measurement `m` into surfel `local` of `chunk`; returns its new position.
-fn merge(chunk: &mut ChunkMut<'_>, local: usize, m: &Surfel, frame: u32) -> Vec3 {
+fn merge(chunk: &mut ChunkMut<'_>, local: usize, m: &Surfel) -> Vec3 {
     let merged = chunk.surfel(local).merged_with(m);
     chunk.set_surfel(local, &merged);
     // Not marked changed: a merge refines a surfel by less than the sensor
     // noise; renderers refresh merged data in the background (see
     // `SurfelMap::take_changed_range`).
-    chunk.last_seen[local] = frame;
     merged.position
 }

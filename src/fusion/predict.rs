@@ -86,7 +86,7 @@ impl Prediction {
             &self.visible,
             &camera_from_world,
             k,
-            Some(depth_band_m),
+            depth_band_m,
             include,
         );
         let w = k.width;

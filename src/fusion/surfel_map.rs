@@ -63,8 +63,6 @@ pub struct ChunkMut<'a> {
     pub radii: &'a mut [f32],
     /// Confidences.
     pub confidences: &'a mut [f32],
-    /// Frame of the last merge.
-    pub last_seen: &'a mut [u32],
 }
 
 /// Reusable buffers for [`SurfelMap::reorder`], one per attribute type.
@@ -108,8 +106,6 @@ pub struct SurfelMap {
     pub confidences: Vec<f32>,
     /// Frame index at which the surfel was created.
     pub first_seen: Vec<u32>,
-    /// Frame index of the last merge.
-    pub last_seen: Vec<u32>,
     /// Lowest index changed since the last `take_changed_range`.
     change_lo: usize,
     /// One past the highest index changed since the last `take_changed_range`.
@@ -227,7 +223,6 @@ impl SurfelMap {
         self.radii.clear();
         self.confidences.clear();
         self.first_seen.clear();
-        self.last_seen.clear();
     }
 
     /// Reserves room for `additional` more surfels in every array.
@@ -238,7 +233,6 @@ impl SurfelMap {
         self.radii.reserve(additional);
         self.confidences.reserve(additional);
         self.first_seen.reserve(additional);
-        self.last_seen.reserve(additional);
     }
 
     /// Appends one surfel.
@@ -258,7 +252,6 @@ impl SurfelMap {
         self.radii.push(radius);
         self.confidences.push(confidence);
         self.first_seen.push(frame);
-        self.last_seen.push(frame);
         let i = self.positions.len() - 1;
         self.bounds.grow(i, position);
         self.mark_changed(i);
@@ -278,14 +271,10 @@ impl SurfelMap {
             .zip(self.colours.par_chunks_mut(CHUNK))
             .zip(self.radii.par_chunks_mut(CHUNK))
             .zip(self.confidences.par_chunks_mut(CHUNK))
-            .zip(self.last_seen.par_chunks_mut(CHUNK))
             .zip(per_chunk.par_iter_mut())
             .enumerate()
             .for_each(
-                |(
-                    c,
-                    ((((((positions, normals), colours), radii), confidences), last_seen), item),
-                )| {
+                |(c, (((((positions, normals), colours), radii), confidences), item))| {
                     let chunk = ChunkMut {
                         first: c * CHUNK,
                         positions,
@@ -293,7 +282,6 @@ impl SurfelMap {
                         colours,
                         radii,
                         confidences,
-                        last_seen,
                     };
                     f(chunk, item);
                 },
@@ -336,8 +324,7 @@ impl SurfelMap {
             source,
             &mut scratch.floats,
         );
-        gather(&mut self.first_seen[r.clone()], source, &mut scratch.frames);
-        gather(&mut self.last_seen[r], source, &mut scratch.frames);
+        gather(&mut self.first_seen[r], source, &mut scratch.frames);
     }
 
     /// Recomputes the chunk boxes from the chunk holding surfel `first` on.
@@ -371,7 +358,6 @@ impl SurfelMap {
                 self.radii[write] = self.radii[read];
                 self.confidences[write] = self.confidences[read];
                 self.first_seen[write] = self.first_seen[read];
-                self.last_seen[write] = self.last_seen[read];
             }
             write += 1;
         }
@@ -387,7 +373,6 @@ impl SurfelMap {
         self.radii.truncate(write);
         self.confidences.truncate(write);
         self.first_seen.truncate(write);
-        self.last_seen.truncate(write);
         if first_removed < len {
             self.bounds.rebuild_from(&self.positions, first_removed);
         }
