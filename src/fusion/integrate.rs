@@ -246,7 +246,7 @@ impl Integrator {
                     continue;
                 }
                 update.merged += 1;
-                if chunk.confidences[local] >= config.settled_confidence {
+                if config.is_settled(chunk.confidences[local]) {
                     continue;
                 }
                 let p = merge(&mut chunk, local, &measure(pixel as usize));
@@ -357,8 +357,7 @@ fn absorb_redundant(
         let Some(b) = winner(j).filter(|&b| on_disk(map, b, j)) else {
             continue;
         };
-        // A settled surfel keeps its place (`FusionConfig::settled_confidence`).
-        if map.confidences[b] < config.settled_confidence {
+        if !config.is_settled(map.confidences[b]) {
             let merged = map.surfel(b).merged_with(&map.surfel(j));
             map.set_surfel(b, &merged);
             map.grow_bounds(b, merged.position, merged.position);

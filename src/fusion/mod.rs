@@ -91,4 +91,12 @@ impl FusionConfig {
         let c = map.confidences[i];
         c >= self.stable_confidence || (frame < self.warmup_frames && c >= 0.0)
     }
+
+    /// Whether a surfel of this confidence is settled: merges and absorbed
+    /// duplicates no longer move it (see `settled_confidence`).
+    #[inline]
+    #[must_use]
+    pub fn is_settled(&self, confidence: f32) -> bool {
+        confidence >= self.settled_confidence
+    }
 }
