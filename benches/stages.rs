@@ -9,7 +9,7 @@ use glam::DAffine3;
 use std::path::PathBuf;
 use surfel_slam::dataset::Sequence;
 use surfel_slam::fusion::index_map::RigidF32;
-use surfel_slam::fusion::{Integrator, Prediction};
+use surfel_slam::fusion::{DepthTiles, Integrator, Measured, Prediction};
 use surfel_slam::preprocess::{normals_into, FramePyramid};
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
 use surfel_slam::track::icp::icp_step;
@@ -122,11 +122,21 @@ fn stages(c: &mut Criterion) {
     let mut prediction = Prediction::new(true);
     let map = f.slam.map();
     let include = |i| fusion.predicts(map, i, MAP_FRAMES as u32);
-    prediction.render(map, &f.pose, &k, (fusion.depth_gate_m, far), None, include);
+    // The prediction shows what the last fused frame measured from `pose`.
+    let (c_last, d_last) = &f.bytes[MAP_FRAMES - 1];
+    let last = RgbdFrame::from_png_bytes(c_last, d_last, &f.config.depth).expect("decodable frame");
+    let mut last_pyramid = FramePyramid::new(&k, &f.config.preprocess);
+    last_pyramid.build(&last, &f.config.preprocess);
+    let mut tiles = DepthTiles::default();
+    tiles.build(&last_pyramid.levels[0].vertices, k.width);
+    let measured = Measured {
+        vertices: &last_pyramid.levels[0].vertices,
+        tiles: &tiles,
+    };
+    let band = (fusion.depth_gate_m, far);
+    prediction.render(map, &f.pose, &k, band, measured, include);
     c.bench_function("prediction (map-sized)", |b| {
-        b.iter(|| {
-            prediction.render(map, &f.pose, &k, (fusion.depth_gate_m, far), None, include);
-        });
+        b.iter(|| prediction.render(map, &f.pose, &k, band, measured, include));
     });
 
     let camera_from_world = RigidF32::from_affine(&f.pose.inverse());

@@ -6,7 +6,7 @@
 use std::time::Instant;
 use surfel_slam::dataset::{read_frame, Sequence};
 use surfel_slam::fusion::index_map::RigidF32;
-use surfel_slam::fusion::Prediction;
+use surfel_slam::fusion::{DepthTiles, Measured, Prediction};
 use surfel_slam::preprocess::FramePyramid;
 use surfel_slam::track::icp::icp_step;
 use surfel_slam::track::rgb::RgbWorkspace;
@@ -32,10 +32,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut prediction = Prediction::default();
     let map = slam.map();
     let band = (config.fusion.depth_gate_m, config.depth.max_m);
-    prediction.render(map, &pose, &k, band, None, |i| {
+    // The prediction shows what the last fused frame measured from `pose`.
+    let mut pyramid = FramePyramid::new(&k, &config.preprocess);
+    let newest = fused.last().ok_or("nothing fused")?;
+    pyramid.build(
+        &read_frame(&dir, newest, &config.depth)?,
+        &config.preprocess,
+    );
+    let mut tiles = DepthTiles::default();
+    tiles.build(&pyramid.levels[0].vertices, k.width);
+    let measured = Measured {
+        vertices: &pyramid.levels[0].vertices,
+        tiles: &tiles,
+    };
+    prediction.render(map, &pose, &k, band, measured, |i| {
         config.fusion.predicts(map, i, frames as u32)
     });
-    let mut pyramid = FramePyramid::new(&k, &config.preprocess);
     pyramid.build(&read_frame(&dir, last, &config.depth)?, &config.preprocess);
     let t = RigidF32::from_affine(&pose.inverse());
     let mut rgb = RgbWorkspace::default();

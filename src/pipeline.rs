@@ -8,7 +8,8 @@ use crate::camera::{CameraPreset, Intrinsics};
 use crate::clock::now_ms;
 use crate::frame::{DecodeScratch, DepthSettings, FrameError, RgbdFrame};
 use crate::fusion::{
-    remove_unstable, FusionConfig, FusionStats, Integrator, Prediction, SpatialOrder, SurfelMap,
+    remove_unstable, FusionConfig, FusionStats, Integrator, Measured, Prediction, SpatialOrder,
+    SurfelMap,
 };
 use crate::preprocess::{half_resolution_into, FramePyramid, PreprocessConfig};
 use crate::se3;
@@ -541,7 +542,10 @@ impl Pipeline {
                 &pose,
                 &k,
                 (fusion_cfg.depth_gate_m, far_m),
-                Some(self.integrator.depth_tiles()),
+                Measured {
+                    vertices: self.pyramid.levels.first().map_or(&[], |l| &l.vertices),
+                    tiles: self.integrator.depth_tiles(),
+                },
                 |i| fusion_cfg.predicts(map, i, fused),
             );
             self.tracker

@@ -4,7 +4,9 @@
 //! Fusion only pairs a surfel with the measurement at its pixel when their
 //! depths differ by at most the depth gate, so a block whose box is farther
 //! than every measurement it can project onto, plus the gate, has no
-//! candidate: skipping it changes nothing. On a revisit that is the far
+//! candidate: skipping it changes nothing. The same holds for the model
+//! prediction, which shows at each pixel only surfels at most a band behind
+//! the measured point (see `index_map`). On a revisit that is the far
 //! side of objects and what they hide (about a fifth of the map on TUM
 //! fr3/teddy).
 
@@ -59,37 +61,8 @@ impl DepthTiles {
         &self,
         k: &Intrinsics,
         camera_from_world: &RigidF32,
-        box_m: (Vec3, Vec3),
-        gate_m: f32,
-    ) -> bool {
-        self.test_box(k, camera_from_world, box_m, gate_m, false)
-    }
-
-    /// False when the world-frame box `[min, max]`, seen from the pose the
-    /// tiles were measured at, lies more than `gate_m` behind the measured
-    /// surface in every tile it projects onto, or projects outside the
-    /// image: the measured surface hides it. Unlike [`Self::may_reach`], a
-    /// tile without measurement hides nothing.
-    #[must_use]
-    pub fn may_show(
-        &self,
-        k: &Intrinsics,
-        camera_from_world: &RigidF32,
-        box_m: (Vec3, Vec3),
-        gate_m: f32,
-    ) -> bool {
-        self.test_box(k, camera_from_world, box_m, gate_m, true)
-    }
-
-    /// The box test of `may_reach` and `may_show`; `unmeasured_passes`: what
-    /// a tile without measurement answers.
-    fn test_box(
-        &self,
-        k: &Intrinsics,
-        camera_from_world: &RigidF32,
         (min, max): (Vec3, Vec3),
         gate_m: f32,
-        unmeasured_passes: bool,
     ) -> bool {
         if self.far.is_empty() {
             // Never built (or an empty image): nothing to test against.
@@ -126,13 +99,7 @@ impl DepthTiles {
         (r0..=r1).any(|r| {
             self.far[r * self.columns + c0..=r * self.columns + c1]
                 .iter()
-                .any(|&far| {
-                    if far > 0.0 {
-                        far + gate_m >= near
-                    } else {
-                        unmeasured_passes
-                    }
-                })
+                .any(|&far| far > 0.0 && far + gate_m >= near)
         })
     }
 }
@@ -172,15 +139,8 @@ mod tests {
         // Just beyond the gate is skipped, within it is kept.
         assert!(tiles.may_reach(&k, &t, cube(-0.4, 2.09), gate));
         assert!(!tiles.may_reach(&k, &t, cube(-0.4, 2.11), gate));
-        // Right half: no measurement to pair with, but nothing hides it.
+        // Right half: no measurement to pair with.
         assert!(!tiles.may_reach(&k, &t, cube(0.4, 2.0), gate));
-        assert!(tiles.may_show(&k, &t, cube(0.4, 2.0), gate));
-        assert!(tiles.may_show(&k, &t, cube(0.4, 3.0), gate));
-        // Behind the wall it is hidden, on it or in front it shows.
-        assert!(!tiles.may_show(&k, &t, cube(-0.4, 3.0), gate));
-        assert!(tiles.may_show(&k, &t, cube(-0.4, 2.0), gate));
-        assert!(tiles.may_show(&k, &t, cube(-0.2, 1.0), gate));
-        assert!(!tiles.may_show(&k, &t, cube(-5.0, 2.0), gate));
         // Tiles never built keep every box.
         assert!(DepthTiles::default().may_reach(&k, &t, cube(-0.4, 3.0), gate));
         // Outside the image, and a box reaching the camera plane.

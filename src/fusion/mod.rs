@@ -21,7 +21,7 @@ mod surfel_map;
 pub use cleanup::remove_unstable;
 pub use depth_tiles::DepthTiles;
 pub use integrate::{FusionStats, Integrator, ABSORBED};
-pub use predict::Prediction;
+pub use predict::{Measured, Prediction};
 pub use spatial_order::SpatialOrder;
 pub use surfel_map::{Surfel, SurfelMap};
 

@@ -9,6 +9,16 @@ use crate::fusion::{DepthTiles, SurfelMap};
 use glam::{DAffine3, Vec3};
 use rayon::prelude::*;
 
+/// What the camera measured from the pose a prediction is rendered at.
+#[derive(Debug, Clone, Copy)]
+pub struct Measured<'a> {
+    /// Back-projected points, camera frame, metres, row-major; `ZERO` where
+    /// the pixel has no depth.
+    pub vertices: &'a [Vec3],
+    /// Farthest depth per tile of the same points.
+    pub tiles: &'a DepthTiles,
+}
+
 /// Per-pixel maps of the model seen from `world_from_camera`, full resolution.
 #[derive(Debug, Default)]
 pub struct Prediction {
@@ -42,19 +52,19 @@ impl Prediction {
         }
     }
 
-    /// Renders the surfels selected by `include` into the view `world_from_camera`
-    /// up to depth `far_m`; per pixel, the most confident surfel within
-    /// `depth_band_m` of the nearest. With `measured`, the depth tiles of a
-    /// frame taken from this same pose, map blocks lying more than
-    /// `depth_band_m` behind the surface it measured are skipped: that
-    /// surface hides them.
+    /// Renders the surfels selected by `include` into the view
+    /// `world_from_camera` up to depth `far_m`: per pixel that `measured`
+    /// holds, the most confident surfel lying at most `depth_band_m` behind
+    /// the measured point (see `index_map`). Map blocks lying more than
+    /// `depth_band_m` behind every measured point they project onto are
+    /// skipped: the measured surface hides them.
     pub fn render(
         &mut self,
         map: &SurfelMap,
         world_from_camera: &DAffine3,
         k: &Intrinsics,
         (depth_band_m, far_m): (f32, f32),
-        measured: Option<&DepthTiles>,
+        measured: Measured<'_>,
         include: impl Fn(usize) -> bool + Sync,
     ) {
         let n = k.pixel_count();
@@ -75,9 +85,9 @@ impl Prediction {
             &camera_from_world,
             far_m,
             |lo, hi| {
-                measured.map_or(true, |t| {
-                    t.may_show(k, &camera_from_world, (lo, hi), depth_band_m)
-                })
+                measured
+                    .tiles
+                    .may_reach(k, &camera_from_world, (lo, hi), depth_band_m)
             },
             &mut self.visible,
         );
@@ -86,6 +96,7 @@ impl Prediction {
             &self.visible,
             &camera_from_world,
             k,
+            measured.vertices,
             depth_band_m,
             include,
         );
