@@ -211,7 +211,11 @@ mod tests {
         let mut index = IndexMap::default();
         index.resize(&k);
         let t = RigidF32::from_affine(&glam::DAffine3::IDENTITY);
-        index.render(&map, &[0..map.len()], &t, &k, &measured, 0.05, |_| true);
+        let all = vec![Range {
+            start: 0,
+            end: map.len(),
+        }];
+        index.render(&map, &all, &t, &k, &measured, 0.05, |_| true);
         assert_eq!(index.surfel_at(3, 3), Some(1));
         assert_eq!(index.surfel_at(4, 3), Some(3));
         assert_eq!(index.surfel_at(7, 3), None);
@@ -222,7 +226,7 @@ mod tests {
             .count();
         assert_eq!(shown, 2);
         // Excluded surfels are not shown.
-        index.render(&map, &[0..map.len()], &t, &k, &measured, 0.05, |i| i != 1);
+        index.render(&map, &all, &t, &k, &measured, 0.05, |i| i != 1);
         assert_eq!(index.surfel_at(3, 3), Some(0));
     }
 
