@@ -332,6 +332,9 @@ impl Pipeline {
     /// Forgets the map and trajectory, keeping configuration and buffers.
     pub fn reset(&mut self) {
         self.map.clear();
+        // The sorted runs index the old map: kept, the next cleanup would
+        // read past the new one's end.
+        self.order.clear();
         self.trajectory.clear();
         self.last_good = None;
         self.frame_index = 0;

@@ -62,6 +62,12 @@ pub struct SpatialOrder {
 }
 
 impl SpatialOrder {
+    /// Forgets the sorted runs (for an emptied map), keeping the buffers.
+    pub fn clear(&mut self) {
+        self.runs.clear();
+        self.keys.clear();
+    }
+
     /// Makes room for sorting the longest run `map` can hold now, so that
     /// sorting allocates only when the map itself grew (its memory stays
     /// flat once it is full: tests/node/long_run.test.mjs).
