@@ -402,6 +402,7 @@ impl Pipeline {
             &mut DecodeScratch,
         ) -> Result<(), FrameError>,
     ) -> Result<FrameReport, PipelineError> {
+        self.decoded_was_pushed = false;
         check_timestamp(timestamp)?;
         let t0 = now_ms();
         // Decoded into buffers kept from frame to frame; taken out of `self`

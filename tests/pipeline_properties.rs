@@ -1,0 +1,631 @@
+//! Stateful property test of the `Pipeline` API (issue 19): seeded random
+//! sequences of valid frames (synthetic, and TUM fr3/teddy and ICL-NUIM kt0
+//! from ../shared/data when present), garbage (corrupt or truncated PNG,
+//! wrong size, 8-bit depth, colour/depth size mismatch, wrong pixel buffer,
+//! NaN or infinite timestamp), reset, a change of configuration (a new
+//! pipeline, as the page and the wasm `Slam` do), PLY export, changed range
+//! and trajectory reads, in any order. The runs are long enough to cross the
+//! periodic cleanups, the spatial sorting and merging of settled surfels,
+//! the compaction of absorbed surfels and the surfel budget, and a reset
+//! after 100+ frames (what panicked in issue 19).
+//!
+//! After every step: no panic; every surfel array equally long and finite;
+//! live + absorbed surfels = array length = what the budget counts; the PLY
+//! holds the live surfels; verdict counts sum to the frames accepted, which
+//! equal the trajectory's length and the timestamps pushed; a refused push
+//! changes nothing; the changed range lies within the arrays.
+//!
+//! `SURFEL_SLAM_PROPERTY_CASES=N` runs N synthetic cases instead of the
+//! default (seeds 0..N); a failure prints the seed and the step.
+
+mod common;
+
+use common::{shared_dataset, synthetic_config};
+use std::io::Cursor;
+use std::path::PathBuf;
+use surfel_slam::dataset::ply::write_ply;
+use surfel_slam::dataset::{read_frame, Sequence};
+use surfel_slam::synthetic::{self, NoiseModel, Scene};
+use surfel_slam::track::TrackerMode;
+use surfel_slam::{FrameReport, Intrinsics, Pipeline, PipelineError, RgbdFrame, SlamConfig};
+
+/// SplitMix64: a seeded, dependency-free generator.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+
+    fn range(&mut self, lo: usize, hi: usize) -> usize {
+        lo + self.below(hi - lo + 1)
+    }
+
+    fn chance(&mut self, p: f64) -> bool {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64 <= p
+    }
+}
+
+/// One valid frame in the three forms the pipeline takes.
+struct Encoded {
+    colour_png: Vec<u8>,
+    depth_png: Vec<u8>,
+    /// The colour decoded (RGB8), for `push_pixels_and_depth_png`.
+    rgb: Vec<u8>,
+    width: usize,
+    height: usize,
+    /// The frame decoded, for `push_frame`.
+    frame: RgbdFrame,
+}
+
+/// Where a case's valid frames come from: a synthetic room rendered ahead,
+/// or a real sequence read on demand.
+enum Frames {
+    Synthetic(Vec<Encoded>),
+    Real { dir: PathBuf, sequence: Sequence },
+}
+
+struct Pool {
+    name: &'static str,
+    base: SlamConfig,
+    frames: Frames,
+    /// A small budget that the pool's frames reach within a few dozen frames.
+    small_budget: (usize, usize),
+}
+
+impl Pool {
+    fn len(&self) -> usize {
+        match &self.frames {
+            Frames::Synthetic(f) => f.len(),
+            Frames::Real { sequence, .. } => sequence.frames.len(),
+        }
+    }
+
+    fn frame(&self, i: usize) -> Encoded {
+        match &self.frames {
+            Frames::Synthetic(f) => {
+                let e = &f[i];
+                Encoded {
+                    colour_png: e.colour_png.clone(),
+                    depth_png: e.depth_png.clone(),
+                    rgb: e.rgb.clone(),
+                    width: e.width,
+                    height: e.height,
+                    frame: e.frame.clone(),
+                }
+            }
+            Frames::Real { dir, sequence } => {
+                let entry = &sequence.frames[i];
+                let colour_png = std::fs::read(dir.join(&entry.colour)).expect("colour file");
+                let depth_png = std::fs::read(dir.join(&entry.depth)).expect("depth file");
+                let rgb = image::load_from_memory(&colour_png)
+                    .expect("colour decodes")
+                    .to_rgb8();
+                let (width, height) = (rgb.width() as usize, rgb.height() as usize);
+                let frame = read_frame(dir, entry, &self.base.depth).expect("frame decodes");
+                Encoded {
+                    colour_png,
+                    depth_png,
+                    rgb: rgb.into_raw(),
+                    width,
+                    height,
+                    frame,
+                }
+            }
+        }
+    }
+}
+
+fn encode_synthetic(
+    k: &Intrinsics,
+    config: &SlamConfig,
+    pose: usize,
+    noise: &NoiseModel,
+) -> Encoded {
+    let r = synthetic::render(
+        &Scene::room(),
+        k,
+        &synthetic::trajectory_pose(pose),
+        noise,
+        pose as u64,
+    );
+    let (colour_png, depth_png) = r.to_png_bytes().expect("encode");
+    Encoded {
+        frame: r.to_frame(&config.depth).expect("frame"),
+        colour_png,
+        depth_png,
+        width: r.width,
+        height: r.height,
+        rgb: r.rgb,
+    }
+}
+
+/// The synthetic room at 160x120 (fast): every third pose of its path for
+/// `n` frames (3-4 cm a frame), so that the map grows past what one frame
+/// adds as new parts of the room come into view; Kinect-like noise.
+fn synthetic_pool(n: usize) -> Pool {
+    let k = synthetic::default_intrinsics().half().half();
+    let base = synthetic_config(k);
+    let noise = NoiseModel::kinect();
+    let frames = (0..n)
+        .map(|i| encode_synthetic(&k, &base, 3 * i, &noise))
+        .collect();
+    Pool {
+        name: "synthetic 160x120",
+        base,
+        frames: Frames::Synthetic(frames),
+        small_budget: (4_000, 20_000),
+    }
+}
+
+fn real_pool(name: &'static str, folder: &str) -> Option<Pool> {
+    let dir = shared_dataset(folder)?;
+    let sequence = Sequence::open(&dir).expect("sequence opens");
+    Some(Pool {
+        name,
+        base: SlamConfig::from_preset(sequence.preset),
+        frames: Frames::Real { dir, sequence },
+        small_budget: (60_000, 150_000),
+    })
+}
+
+/// A frame no pool uses (96x72) and an 8-bit depth PNG of a pool's size.
+struct Garbage {
+    odd: Encoded,
+}
+
+fn png_8bit(width: usize, height: usize) -> Vec<u8> {
+    let grey = image::GrayImage::from_pixel(width as u32, height as u32, image::Luma([100]));
+    let mut out = Cursor::new(Vec::new());
+    grey.write_to(&mut out, image::ImageFormat::Png)
+        .expect("encode");
+    out.into_inner()
+}
+
+/// A random configuration of `pool`'s camera: tracker, resolution, budget.
+fn random_config(pool: &Pool, rng: &mut Rng) -> SlamConfig {
+    let mut config = pool.base.clone();
+    config.tracker.mode = match rng.below(6) {
+        0 => TrackerMode::Rgb,
+        1 => TrackerMode::Joint,
+        _ => TrackerMode::Icp,
+    };
+    config.half_resolution = rng.chance(0.25);
+    if rng.chance(0.5) {
+        config.fusion.max_surfels = rng.range(pool.small_budget.0, pool.small_budget.1);
+    }
+    config
+}
+
+/// What the test knows the pipeline must hold.
+#[derive(Default)]
+struct Model {
+    /// Timestamps of the frames accepted since the last reset.
+    accepted: Vec<f64>,
+    last_report: Option<FrameReport>,
+}
+
+/// What a case crossed, summed over cases.
+#[derive(Debug, Default, Clone, Copy)]
+struct Coverage {
+    cases: usize,
+    steps: usize,
+    longest_case: usize,
+    longest_run: usize,
+    frames: usize,
+    lost: usize,
+    refused: usize,
+    resets: usize,
+    resets_after_100: usize,
+    config_changes: usize,
+    cleanups: usize,
+    compactions: usize,
+    budget_full: usize,
+    exports: usize,
+}
+
+fn fail(seed: u64, step: usize, what: &str) -> String {
+    format!("seed {seed}, step {step}: {what}")
+}
+
+/// Every invariant of a pipeline at rest.
+fn check(slam: &Pipeline, model: &Model, at: &dyn Fn(&str) -> String) {
+    let map = slam.map();
+    let n = map.len();
+    let lens = [
+        map.positions.len(),
+        map.normals.len(),
+        map.colours.len(),
+        map.radii.len(),
+        map.confidences.len(),
+        map.first_seen.len(),
+    ];
+    assert!(
+        lens.iter().all(|&l| l == n),
+        "{}",
+        at(&format!("array lengths {lens:?}"))
+    );
+    assert!(map.all_finite(), "{}", at("a NaN or infinity in the map"));
+    let live = map.confidences.iter().filter(|&&c| c >= 0.0).count();
+    assert_eq!(map.live_len(), live, "{}", at("live surfels"));
+    assert_eq!(
+        map.live_len() + map.absorbed_len(),
+        n,
+        "{}",
+        at("live + absorbed")
+    );
+    assert!(
+        n <= slam.config().fusion.max_surfels,
+        "{}",
+        at("over the budget")
+    );
+    let c = slam.counts();
+    let frames = slam.frames() as usize;
+    assert_eq!(frames, model.accepted.len(), "{}", at("frames accepted"));
+    assert_eq!(
+        (c.tracked + c.lost + c.recovered) as usize,
+        frames,
+        "{}",
+        at(&format!("verdict counts {c:?}"))
+    );
+    assert!(c.lost_streak <= c.lost, "{}", at("lost streak"));
+    let trajectory = slam.trajectory();
+    assert_eq!(trajectory.len(), frames, "{}", at("trajectory length"));
+    assert!(
+        trajectory
+            .iter()
+            .zip(&model.accepted)
+            .all(|((t, pose), &pushed)| *t == pushed && pose.is_finite()),
+        "{}",
+        at("trajectory timestamps or poses")
+    );
+    match &model.last_report {
+        Some(r) => {
+            assert_eq!(r.index as usize + 1, frames, "{}", at("report index"));
+            assert_eq!(r.surfels, map.live_len(), "{}", at("report surfels"));
+            assert_eq!(r.surfel_slots, n, "{}", at("report slots"));
+            assert_eq!(r.counts, c, "{}", at("report counts"));
+            assert!(r.world_from_camera.is_finite(), "{}", at("report pose"));
+        }
+        None => assert_eq!(frames, 0, "{}", at("frames without a report")),
+    }
+}
+
+/// Runs one case; returns what it crossed.
+/// `first_run` (when not 0): frames before the first reset or change of
+/// configuration may happen, and a reset right then.
+fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: usize) -> Coverage {
+    let mut rng = Rng(seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ 0x5eed);
+    let mut cov = Coverage {
+        cases: 1,
+        longest_case: steps,
+        ..Coverage::default()
+    };
+    let mut slam = Pipeline::new(random_config(pool, &mut rng)).expect("config");
+    let mut model = Model::default();
+    // Frames are played forwards and backwards (continuous motion).
+    let period = (2 * pool.len()).saturating_sub(2).max(1);
+    let mut cursor = rng.below(pool.len());
+    let mut clock = 0.0;
+    let run_length = |rng: &mut Rng| {
+        if rng.chance(0.35) {
+            rng.range(100, 220)
+        } else {
+            rng.range(5, 60)
+        }
+    };
+    let mut run_target = run_length(&mut rng).max(first_run);
+    let mut forced_reset = false;
+    for step in 0..steps {
+        let frames = slam.frames();
+        let at = |what: &str| {
+            fail(
+                seed,
+                step,
+                &format!("{} ({frames} frames): {what}", pool.name),
+            )
+        };
+        let mut roll = rng.below(100);
+        // Resets and new configurations mostly wait for the run's target
+        // length, so that runs cross many cleanups before they end.
+        if (84..90).contains(&roll)
+            && (slam.frames() as usize) < run_target
+            && (run_target >= 100 || !rng.chance(0.1))
+        {
+            roll = 0;
+        }
+        if first_run > 0 && slam.frames() as usize == first_run && !forced_reset {
+            roll = 84;
+            forced_reset = true;
+        }
+        if roll < 72 {
+            // A valid frame, through one of the three entry points.
+            let k = cursor % period;
+            let e = pool.frame(if k < pool.len() { k } else { period - k });
+            cursor += 1;
+            clock += 1.0 / 30.0;
+            let before = (slam.map().len(), slam.map().absorbed_len());
+            let r = match rng.below(3) {
+                0 => slam.push_png(&e.colour_png, &e.depth_png, clock),
+                1 => slam.push_pixels_and_depth_png(e.width, e.height, &e.rgb, &e.depth_png, clock),
+                _ => slam.push_frame(&e.frame, clock),
+            };
+            let r =
+                r.unwrap_or_else(|err| panic!("{}", at(&format!("valid frame refused: {err}"))));
+            model.accepted.push(clock);
+            cov.frames += 1;
+            cov.lost += usize::from(!r.verdict.is_fused());
+            let interval = slam.config().fusion.cleanup_interval_frames.max(1);
+            if r.verdict.is_fused() && r.index > 0 && r.index % interval == 0 {
+                cov.cleanups += 1;
+                // Absorbed surfels before the young tail wait until they are
+                // 5 % of the map; then one cleanup removes them all.
+                if before.1 * 20 >= before.0 && before.1 > 0 && slam.map().absorbed_len() == 0 {
+                    cov.compactions += 1;
+                }
+            }
+            cov.budget_full += usize::from(r.fusion.skipped > 0);
+            model.last_report = Some(r);
+            cov.longest_run = cov.longest_run.max(model.accepted.len());
+        } else if roll < 84 {
+            // Garbage: refused, and nothing changes.
+            let e = pool.frame(cursor % pool.len());
+            let before = (
+                slam.frames(),
+                slam.map().len(),
+                slam.map().live_len(),
+                slam.counts(),
+            );
+            let kind = rng.below(8);
+            let result = match kind {
+                0 => {
+                    let cut = rng.range(1, e.depth_png.len() - 1);
+                    slam.push_png(&e.colour_png, &e.depth_png[..cut], clock + 1.0)
+                }
+                1 => {
+                    let mut colour = e.colour_png.clone();
+                    colour[..8].fill(0);
+                    slam.push_png(&colour, &e.depth_png, clock + 1.0)
+                }
+                2 => slam.push_png(&garbage.odd.colour_png, &garbage.odd.depth_png, clock + 1.0),
+                3 => slam.push_png(&e.colour_png, &png_8bit(e.width, e.height), clock + 1.0),
+                4 => slam.push_png(&garbage.odd.colour_png, &e.depth_png, clock + 1.0),
+                5 => slam.push_pixels_and_depth_png(
+                    e.width,
+                    e.height,
+                    &e.rgb[..e.rgb.len() - 1],
+                    &e.depth_png,
+                    clock + 1.0,
+                ),
+                6 => slam.push_frame(&garbage.odd.frame, clock + 1.0),
+                _ => {
+                    let t = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY][rng.below(3)];
+                    let r = if rng.chance(0.5) {
+                        slam.push_png(&e.colour_png, &e.depth_png, t)
+                    } else {
+                        slam.push_frame(&e.frame, t)
+                    };
+                    if let Err(err) = &r {
+                        assert!(
+                            matches!(err, PipelineError::InvalidTimestamp(_)),
+                            "{}",
+                            at(&format!("timestamp {t}: {err}"))
+                        );
+                    }
+                    r
+                }
+            };
+            assert!(
+                result.is_err(),
+                "{}",
+                at(&format!("garbage {kind} accepted"))
+            );
+            let after = (
+                slam.frames(),
+                slam.map().len(),
+                slam.map().live_len(),
+                slam.counts(),
+            );
+            assert_eq!(
+                before,
+                after,
+                "{}",
+                at(&format!("garbage {kind} changed the state"))
+            );
+            assert!(
+                slam.last_decoded_frame().is_none(),
+                "{}",
+                at("refused frame kept")
+            );
+            cov.refused += 1;
+        } else if roll < 88 {
+            cov.resets += 1;
+            cov.resets_after_100 += usize::from(slam.frames() >= 100);
+            slam.reset();
+            model = Model::default();
+            run_target = run_length(&mut rng);
+            assert_eq!(
+                slam.take_changed_range(),
+                0..0,
+                "{}",
+                at("changed range after reset")
+            );
+            assert_eq!(slam.map().len(), 0, "{}", at("map after reset"));
+            if rng.chance(0.5) {
+                cursor = rng.below(pool.len());
+            }
+        } else if roll < 90 {
+            cov.config_changes += 1;
+            slam = Pipeline::new(random_config(pool, &mut rng)).expect("config");
+            model = Model::default();
+            run_target = run_length(&mut rng);
+        } else if roll < 94 {
+            let ply = write_ply(slam.map());
+            let text = String::from_utf8_lossy(&ply[..ply.len().min(600)]).to_string();
+            let end = text.find("end_header\n").expect("PLY header") + "end_header\n".len();
+            let live = slam.map().live_len();
+            assert!(
+                text.contains(&format!("element vertex {live}\n")),
+                "{}",
+                at(&format!("PLY header for {live} surfels: {text}"))
+            );
+            assert_eq!(ply.len(), end + live * 35, "{}", at("PLY size"));
+            cov.exports += 1;
+        } else if roll < 98 {
+            let r = slam.take_changed_range();
+            assert!(
+                r.start <= r.end && r.end <= slam.map().len(),
+                "{}",
+                at(&format!("changed range {r:?} of {}", slam.map().len()))
+            );
+            assert_eq!(
+                slam.take_changed_range(),
+                0..0,
+                "{}",
+                at("range taken twice")
+            );
+        } else {
+            assert_eq!(
+                slam.trajectory().len(),
+                slam.frames() as usize,
+                "{}",
+                at("trajectory")
+            );
+        }
+        check(&slam, &model, &at);
+        cov.steps += 1;
+    }
+    cov
+}
+
+/// [`run_case`], naming the case when the library panics inside it.
+fn run_case_or_name_it(
+    pool: &Pool,
+    garbage: &Garbage,
+    seed: u64,
+    (steps, first_run): (usize, usize),
+) -> Coverage {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        run_case(pool, garbage, seed, steps, first_run)
+    }))
+    .unwrap_or_else(|_| panic!("{}: seed {seed} ({steps} steps) panicked", pool.name))
+}
+
+fn add(total: &mut Coverage, c: Coverage) {
+    total.cases += c.cases;
+    total.steps += c.steps;
+    total.longest_case = total.longest_case.max(c.longest_case);
+    total.longest_run = total.longest_run.max(c.longest_run);
+    total.frames += c.frames;
+    total.lost += c.lost;
+    total.refused += c.refused;
+    total.resets += c.resets;
+    total.resets_after_100 += c.resets_after_100;
+    total.config_changes += c.config_changes;
+    total.cleanups += c.cleanups;
+    total.compactions += c.compactions;
+    total.budget_full += c.budget_full;
+    total.exports += c.exports;
+}
+
+fn odd_frame() -> Garbage {
+    let k = Intrinsics::new(78.75, 78.75, 47.5, 35.5, 96, 72);
+    let config = synthetic_config(k);
+    Garbage {
+        odd: encode_synthetic(&k, &config, 0, &NoiseModel::none()),
+    }
+}
+
+#[test]
+fn any_sequence_of_calls_keeps_the_pipeline_consistent_on_synthetic_frames() {
+    let cases: u64 = std::env::var("SURFEL_SLAM_PROPERTY_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(16);
+    let pool = synthetic_pool(120);
+    let garbage = odd_frame();
+    let mut total = Coverage::default();
+    for seed in 0..cases {
+        // Every fourth case is long enough for a reset after 100+ frames.
+        let steps = if seed % 4 == 0 {
+            400
+        } else {
+            60 + (seed as usize * 37) % 160
+        };
+        add(
+            &mut total,
+            run_case_or_name_it(&pool, &garbage, seed, (steps, 0)),
+        );
+    }
+    eprintln!("synthetic: {total:?}");
+    assert!(total.cleanups > 0 && total.compactions > 0, "{total:?}");
+    assert!(
+        total.budget_full > 0 && total.resets_after_100 > 0,
+        "{total:?}"
+    );
+    assert!(
+        total.refused > 0 && total.config_changes > 0 && total.exports > 0,
+        "{total:?}"
+    );
+}
+
+#[test]
+fn any_sequence_of_calls_keeps_the_pipeline_consistent_on_real_frames() {
+    let pools: Vec<Pool> = [
+        real_pool("TUM fr3/teddy", "tum_fr3_teddy"),
+        real_pool("ICL-NUIM kt0", "icl_office_kt0"),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    if pools.is_empty() {
+        return;
+    }
+    let garbage = odd_frame();
+    let mut total = Coverage::default();
+    for (seed, pool) in (1000..).zip(&pools) {
+        // A reset after 100+ real frames, then a shorter run.
+        add(
+            &mut total,
+            run_case_or_name_it(pool, &garbage, seed, (190, 110)),
+        );
+    }
+    eprintln!("real: {total:?}");
+    assert!(total.cleanups > 0 && total.refused > 0, "{total:?}");
+    assert!(
+        total.resets_after_100 + total.config_changes > 0,
+        "{total:?}"
+    );
+}
+
+#[test]
+fn nan_and_infinite_timestamps_are_refused_by_the_library() {
+    let k = synthetic::default_intrinsics().half().half();
+    let config = synthetic_config(k);
+    let e = encode_synthetic(&k, &config, 0, &NoiseModel::none());
+    let mut slam = Pipeline::new(config).expect("config");
+    for t in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        let err = slam
+            .push_png(&e.colour_png, &e.depth_png, t)
+            .expect_err("refused");
+        assert!(
+            err.to_string()
+                .contains("timestamp must be a finite number"),
+            "{err}"
+        );
+        slam.push_frame(&e.frame, t).expect_err("refused");
+        slam.push_pixels_and_depth_png(e.width, e.height, &e.rgb, &e.depth_png, t)
+            .expect_err("refused");
+    }
+    assert_eq!((slam.frames(), slam.map().len()), (0, 0));
+    slam.push_frame(&e.frame, 0.0)
+        .expect("a finite timestamp is accepted");
+}
