@@ -391,6 +391,22 @@ impl Pipeline {
         })
     }
 
+    /// Processes a frame given as buffers: `colour` RGBA8 or RGB8 and
+    /// `depth` in raw units (`config.depth.scale` per metre, 0 = none), both
+    /// row-major `width` x `height` (see [`RgbdFrame::from_raw`]).
+    pub fn push_raw(
+        &mut self,
+        width: usize,
+        height: usize,
+        colour: &[u8],
+        depth: &[u16],
+        timestamp: f64,
+    ) -> Result<FrameReport, PipelineError> {
+        self.decoded_was_pushed = false;
+        let frame = RgbdFrame::from_raw(width, height, colour, depth, &self.config.depth)?;
+        self.push_frame(&frame, timestamp)
+    }
+
     /// Runs `decode` into the reused frame buffers, then [`Pipeline::push_frame`];
     /// the report's `decode_ms` is `decode`'s time.
     fn decode_and_push(

@@ -58,8 +58,10 @@ impl Rng {
 struct Encoded {
     colour_png: Vec<u8>,
     depth_png: Vec<u8>,
-    /// The colour decoded (RGB8), for `push_pixels_and_depth_png`.
+    /// The colour decoded (RGB8), for `push_pixels_and_depth_png` and `push_raw`.
     rgb: Vec<u8>,
+    /// The raw depth decoded, for `push_raw`.
+    depth_raw: Vec<u16>,
     width: usize,
     height: usize,
     /// The frame decoded, for `push_frame`.
@@ -97,6 +99,7 @@ impl Pool {
                     colour_png: e.colour_png.clone(),
                     depth_png: e.depth_png.clone(),
                     rgb: e.rgb.clone(),
+                    depth_raw: e.depth_raw.clone(),
                     width: e.width,
                     height: e.height,
                     frame: e.frame.clone(),
@@ -111,10 +114,15 @@ impl Pool {
                     .to_rgb8();
                 let (width, height) = (rgb.width() as usize, rgb.height() as usize);
                 let frame = read_frame(dir, entry, &self.base.depth).expect("frame decodes");
+                let depth_raw = image::load_from_memory(&depth_png)
+                    .expect("depth decodes")
+                    .to_luma16()
+                    .into_raw();
                 Encoded {
                     colour_png,
                     depth_png,
                     rgb: rgb.into_raw(),
+                    depth_raw,
                     width,
                     height,
                     frame,
@@ -145,6 +153,7 @@ fn encode_synthetic(
         width: r.width,
         height: r.height,
         rgb: r.rgb,
+        depth_raw: r.depth_raw,
     }
 }
 
@@ -353,7 +362,8 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
             cursor += 1;
             clock += 1.0 / 30.0;
             let before = (slam.map().len(), slam.map().absorbed_len());
-            let r = match rng.below(3) {
+            let r = match rng.below(4) {
+                3 => slam.push_raw(e.width, e.height, &e.rgb, &e.depth_raw, clock),
                 0 => slam.push_png(&e.colour_png, &e.depth_png, clock),
                 1 => slam.push_pixels_and_depth_png(e.width, e.height, &e.rgb, &e.depth_png, clock),
                 _ => slam.push_frame(&e.frame, clock),
@@ -384,7 +394,7 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
                 slam.map().live_len(),
                 slam.counts(),
             );
-            let kind = rng.below(8);
+            let kind = rng.below(9);
             let result = match kind {
                 0 => {
                     let cut = rng.range(1, e.depth_png.len() - 1);
@@ -406,6 +416,13 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
                     clock + 1.0,
                 ),
                 6 => slam.push_frame(&garbage.odd.frame, clock + 1.0),
+                7 => slam.push_raw(
+                    e.width,
+                    e.height,
+                    &e.rgb,
+                    &e.depth_raw[..e.depth_raw.len() - e.width],
+                    clock + 1.0,
+                ),
                 _ => {
                     let t = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY][rng.below(3)];
                     let r = if rng.chance(0.5) {

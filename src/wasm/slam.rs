@@ -11,7 +11,6 @@ use wasm_bindgen::prelude::*;
 
 use super::convert::{report_to_js, slam_config_from_js};
 use crate::dataset::{ply::write_ply, trajectory::format_tum};
-use crate::frame::RgbdFrame;
 use crate::pipeline::{Pipeline, PipelineError};
 
 /// Dense RGB-D SLAM: camera trajectory and surfel map from RGB-D frames.
@@ -132,12 +131,9 @@ impl Slam {
         depth: &[u16],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
-        let settings = self.pipeline.config().depth;
-        let frame = RgbdFrame::from_raw(width as usize, height as usize, rgba, depth, &settings)
-            .map_err(|e| js_error(&e.into()))?;
         let report = self
             .pipeline
-            .push_frame(&frame, timestamp)
+            .push_raw(width as usize, height as usize, rgba, depth, timestamp)
             .map_err(|e| js_error(&e))?;
         Ok(report_to_js(&report))
     }
