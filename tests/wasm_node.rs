@@ -193,6 +193,11 @@ fn synthetic_sequence_tracks_and_matches_native() {
         kept > 1000 && kept <= n as usize,
         "{kept} of {n} surfels kept"
     );
+    assert_eq!(
+        slam.live_surfels() as usize,
+        kept,
+        "liveSurfels is the PLY's count"
+    );
     let header = format!("element vertex {kept}\n");
     assert!(
         ply.starts_with(b"ply\n")
