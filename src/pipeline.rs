@@ -349,6 +349,10 @@ impl Pipeline {
     }
 
     /// Forgets the map and trajectory, keeping configuration and buffers.
+    /// Everything that indexes the map or remembers a frame is forgotten or
+    /// rebuilt before it is read, so the pipeline then behaves as a new one:
+    /// the same frames give the same trajectory (to the rounding of parallel
+    /// sums; `tests/reset_replay.rs`, `tests/pipeline_properties.rs`).
     pub fn reset(&mut self) {
         self.map.clear();
         // The sorted runs index the old map: kept, the next cleanup would

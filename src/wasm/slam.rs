@@ -243,7 +243,8 @@ impl Slam {
     }
 
     /// Forgets the map and the trajectory; keeps the configuration. Pushing
-    /// the same frames again gives the same trajectory.
+    /// the same frames again gives the same trajectory (in the threaded
+    /// build to rounding: its parallel sums vary in the last digits).
     pub fn reset(&mut self) {
         self.pipeline.reset();
     }
