@@ -218,8 +218,10 @@ let flipY = false;
 const F = new Float64Array([1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
 const IDENTITY = new Float64Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
 
+/** config: a Slam config ({preset, fy?, ...}); fy, when absent, is the preset's. */
 function setDisplayFrame(config) {
-  if (config && Number.isFinite(config.fy)) flipY = config.fy < 0;
+  const fy = config?.fy ?? presets.find((p) => p.name === config?.preset)?.fy;
+  if (Number.isFinite(fy)) flipY = fy < 0;
   status.displayFlipY = flipY;
 }
 
