@@ -8,6 +8,7 @@ import { Plots, STAGE_COLOURS } from './plots.js';
 import { fromManifest, setupSequenceInput } from './sequence.js';
 import { poseFromTq, multiply, invertRigid, transformPoint } from './math3d.js';
 import { ToWorker, FromWorker } from './protocol.js';
+import { MapMirror } from './map-mirror.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -146,13 +147,71 @@ if (new URLSearchParams(location.search).get('threads') === '0') workerUrl.searc
 if (new URLSearchParams(location.search).get('colour') === 'wasm') workerUrl.searchParams.set('colour', 'wasm');
 // ?testHooks=1 lets the browser tests make the module fail (ToWorker.TEST_BREAK).
 if (new URLSearchParams(location.search).get('testHooks') === '1') workerUrl.searchParams.set('testHooks', '1');
-const worker = new Worker(workerUrl, { type: 'module' });
-worker.onerror = (e) => {
-  reportError(`the worker failed: ${e.message || 'could not start (is www/pkg/ built? run scripts/build.sh)'}`);
-};
+const testHooks = new URLSearchParams(location.search).get('testHooks') === '1';
+// No message for this long while playing: the worker is stuck (a panic on
+// one of the module's threads leaves the worker's own thread waiting for it
+// for ever); the page then starts a new worker.
+const STALL_MS = (testHooks && Number(new URLSearchParams(location.search).get('stallMs'))) || 30_000;
+
+let worker = null;
+let lastHeard = performance.now(); // the last message to or from the worker
+let lastLoad = null; // {name, entries} of the sequence the worker has open
+let loading = null; // the same, for the sequence being opened
+let pendingReload = null; // {name, entries}: to open in a new worker at the next action
+
+function startWorker() {
+  worker = new Worker(workerUrl, { type: 'module' });
+  worker.onerror = (e) => {
+    reportError(`the worker failed: ${e.message || 'could not start (is www/pkg/ built? run scripts/build.sh)'}`);
+  };
+  worker.onmessage = onWorkerMessage;
+  lastHeard = performance.now();
+}
 
 function send(msg) {
+  lastHeard = performance.now();
   worker.postMessage(msg);
+}
+
+// The map and trajectory as the page was sent them: the downloads after a failure.
+const mirror = new MapMirror();
+
+function restartWorker() {
+  worker.terminate();
+  status.moduleFailures++;
+  status.failed = true;
+  status.ready = false;
+  status.playing = false;
+  workerPlaying = false;
+  pendingReload = lastLoad;
+  reportError(
+    `the SLAM worker stopped answering (${Math.round(STALL_MS / 1000)} s without a frame): restarted it. ` +
+      'The downloads keep the map and trajectory so far; Play, Step or Reset starts the sequence again.',
+  );
+  startWorker();
+  setControls();
+}
+
+setInterval(() => {
+  if (workerPlaying && status.ready && performance.now() - lastHeard > STALL_MS) restartWorker();
+}, 1000);
+
+/** Playback and settings messages: after a worker restart, the sequence is opened again first. */
+function act(msg) {
+  if (pendingReload) {
+    const plays = msg.type === ToWorker.PLAY || msg.type === ToWorker.REPLAY;
+    loadSequence(pendingReload, plays);
+    pendingReload = null;
+    if (plays || msg.type === ToWorker.RESET) return;
+  }
+  send(msg);
+}
+
+/** A download from the page's copy (the module has failed). */
+function downloadMirror(what) {
+  const base = (sequence?.name || 'surfel-slam').replace(/[^\w.-]+/g, '_');
+  if (what === 'ply') download(new Blob([mirror.ply()], { type: 'application/octet-stream' }), `${base}_map.ply`);
+  else download(new Blob([mirror.trajectoryTum()], { type: 'text/plain' }), `${base}_trajectory.txt`);
 }
 
 function setControls() {
@@ -160,8 +219,8 @@ function setControls() {
   ui.play.disabled = !has;
   ui.step.disabled = !has || workerPlaying;
   ui.reset.disabled = !has;
-  ui.ply.disabled = !status.ready;
-  ui.trajectory.disabled = !status.ready;
+  ui.ply.disabled = !status.ready && !status.failed;
+  ui.trajectory.disabled = !status.ready && !status.failed;
   ui.play.textContent = workerPlaying ? 'Pause' : status.done ? 'Replay' : 'Play';
   ui.play.title = workerPlaying ? 'stop after this frame' : status.done ? 'empty the map and play again from the first frame' : '';
 }
@@ -251,6 +310,7 @@ function clearMap() {
   gtAnchored = false;
   gtAlign = null;
   status.positionErrorCm = null;
+  mirror.clear();
   plots.reset();
   plots.setGroundTruth(!!sequence?.groundTruth?.length);
   status.plotFrames = 0;
@@ -302,6 +362,7 @@ function groundTruthError(timestamp, pose) {
 const handlers = {
   [FromWorker.READY](msg) {
     status.ready = true;
+    if ($('show-flow').checked) send({ type: ToWorker.FLOW, enabled: true });
     status.module = msg.module;
     status.threads = msg.threads;
     status.frameReader = msg.frameReader === true;
@@ -316,6 +377,7 @@ const handlers = {
   },
 
   [FromWorker.SEQUENCE](msg) {
+    if (loading?.name === msg.name) lastLoad = loading;
     sequence = { name: msg.name, kind: msg.kind, preset: msg.preset, frameCount: msg.frameCount, groundTruth: msg.groundTruth };
     setDisplayFrame(msg.config);
     status.failed = false;
@@ -340,6 +402,9 @@ const handlers = {
     stats.onFrame(msg);
     countRunFrame(msg);
     noteColourDecoder(msg);
+    mirror.update(msg.surfels);
+    if (msg.refresh) mirror.update(msg.refresh);
+    mirror.addPose(msg.result);
     const pose = displayPose(msg.result.pose);
     if (renderer) {
       renderer.updateSurfels(displayChunk(msg.surfels));
@@ -410,7 +475,10 @@ const handlers = {
   },
 
   [FromWorker.EXPORT](msg) {
-    if (msg.partial) showMessage(`downloaded the ${msg.what === 'ply' ? 'map' : 'trajectory'} as it was when the module failed`, 'info');
+    if (msg.unavailable) {
+      downloadMirror(msg.what);
+      return;
+    }
     const base = (msg.name || 'surfel-slam').replace(/[^\w.-]+/g, '_');
     if (msg.what === 'ply') download(new Blob([msg.bytes], { type: 'application/octet-stream' }), `${base}_map.ply`);
     else download(new Blob([msg.text], { type: 'text/plain' }), `${base}_trajectory.txt`);
@@ -421,7 +489,8 @@ const handlers = {
   },
 };
 
-worker.onmessage = (event) => {
+function onWorkerMessage(event) {
+  lastHeard = performance.now();
   const msg = event.data;
   const handler = handlers[msg.type];
   try {
@@ -429,7 +498,8 @@ worker.onmessage = (event) => {
   } catch (e) {
     reportError(`page error while handling ${msg.type}: ${e.message}`);
   }
-};
+}
+startWorker();
 
 function download(blob, name) {
   const url = URL.createObjectURL(blob);
@@ -446,15 +516,17 @@ function download(blob, name) {
 
 ui.play.addEventListener('click', () => {
   if (workerPlaying) send({ type: ToWorker.PAUSE });
-  else send({ type: status.done ? ToWorker.REPLAY : ToWorker.PLAY });
+  else act({ type: status.done ? ToWorker.REPLAY : ToWorker.PLAY });
   workerPlaying = !workerPlaying;
   if (workerPlaying) status.done = false;
   setControls();
 });
-ui.step.addEventListener('click', () => send({ type: ToWorker.STEP }));
-ui.reset.addEventListener('click', () => send({ type: ToWorker.RESET }));
-ui.ply.addEventListener('click', () => send({ type: ToWorker.EXPORT_PLY }));
-ui.trajectory.addEventListener('click', () => send({ type: ToWorker.EXPORT_TRAJECTORY }));
+ui.step.addEventListener('click', () => act({ type: ToWorker.STEP }));
+ui.reset.addEventListener('click', () => act({ type: ToWorker.RESET }));
+ui.ply.addEventListener('click', () => (status.failed ? downloadMirror('ply') : send({ type: ToWorker.EXPORT_PLY })));
+ui.trajectory.addEventListener('click', () =>
+  status.failed ? downloadMirror('trajectory') : send({ type: ToWorker.EXPORT_TRAJECTORY }),
+);
 
 /** New camera or tracker settings: the worker restarts the sequence with them and plays. */
 function applySettings() {
@@ -463,7 +535,7 @@ function applySettings() {
     reportError('intrinsics: fx, fy, cx, cy and depth scale must be numbers');
     return;
   }
-  send({ type: ToWorker.CONFIG, config: c });
+  act({ type: ToWorker.CONFIG, config: c });
 }
 
 ui.preset.addEventListener('change', () => {
@@ -549,6 +621,8 @@ $('view-button').addEventListener('click', () => {
 const urlParams = () => new URLSearchParams(location.search);
 
 function loadSequence(seq, autoplay) {
+  loading = { name: seq.name, entries: seq.entries };
+  pendingReload = null;
   ui.sequenceInfo.textContent = `reading ${seq.name} (${seq.entries.length} files)…`;
   send({ type: ToWorker.LOAD, name: seq.name, entries: seq.entries, autoplay, options: pageOptions() });
 }
@@ -572,7 +646,12 @@ async function loadSample(autoplay) {
 $('sample-button').addEventListener('click', () => loadSample(true));
 
 // ?testHooks=1: the browser tests can make the module fail, as a panic would.
-if (urlParams().get('testHooks') === '1') window.surfelSlamTest = { breakModule: () => send({ type: ToWorker.TEST_BREAK }) };
+if (testHooks) {
+  window.surfelSlamTest = {
+    breakModule: () => send({ type: ToWorker.TEST_BREAK }),
+    hangModule: () => send({ type: ToWorker.TEST_HANG }),
+  };
+}
 
 // Autoplay the sample unless the URL says ?sample=0 (tests that upload a folder).
 if (urlParams().get('sample') !== '0') loadSample(true);

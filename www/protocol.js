@@ -27,6 +27,8 @@ export const ToWorker = Object.freeze({
   EXPORT_TRAJECTORY: 'exportTrajectory',
   /** Test hook, honoured only when the worker's URL has testHooks=1: the module fails at the next call. */
   TEST_BREAK: 'test-break',
+  /** Test hook (testHooks=1): the next frame never returns, as when one of the module's threads panics. */
+  TEST_HANG: 'test-hang',
 });
 
 /** SLAM worker -> page (`{type, ...fields}`). */
@@ -47,7 +49,7 @@ export const FromWorker = Object.freeze({
   STATE: 'state',
   /** {config?}: the map was emptied (reset, replay, new config, rebuilt after a failure). */
   RESET: 'reset',
-  /** {what: 'ply'|'trajectory', bytes|text, name, partial}: a download (partial: the map as it was when the module failed). */
+  /** {what: 'ply'|'trajectory', bytes|text, name} or {what, unavailable: true} (the module has failed: the page uses its own copy). */
   EXPORT: 'export',
   /** {message, frames}: the wasm module failed; playback stopped, it is rebuilt at the next action. */
   MODULE_FAILED: 'module-failed',

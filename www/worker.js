@@ -11,14 +11,13 @@
 // A failure of the module itself (a trap: a panic in Rust; or an object left
 // poisoned by one) stops playback and is reported as MODULE_FAILED; the next
 // action that needs the map starts a fresh instance of the module and a new
-// Slam. Until then the downloads come from the map the page was last sent
-// (map-mirror.js).
+// Slam. Until then the page serves the downloads from its own copy of what
+// it was sent (map-mirror.js).
 //
 // Messages: ToWorker and FromWorker in protocol.js.
 import { ToWorker, FromWorker, ToReader } from './protocol.js';
 import { SequenceSource } from './sequence.js';
 import { readAndDecodeColour, PREVIEW_WIDTH, PREVIEW_HEIGHT } from './colour-decode.js';
-import { MapMirror } from './map-mirror.js';
 
 let wasm = null;
 let moduleKind = null;
@@ -41,8 +40,8 @@ let surfelCount = 0; // the map's size after the last frame (read without callin
 let failure = null; // {message}: the module failed; rebuilt at the next action that needs it
 let instance = 0; // module instances started (a failed one is replaced, not reused)
 let testBreak = false; // test hook: the next call into the module fails
+let testHang = false; // test hook: the next frame never returns
 const testHooks = new URL(self.location.href).searchParams.get('testHooks') === '1';
-const mirror = new MapMirror();
 let refreshCursor = 0; // start of the next rolling refresh window (surfel index)
 const REFRESH_SURFELS = 65536;
 
@@ -61,28 +60,28 @@ function isModuleFailure(e) {
   );
 }
 
-/** The module failed: stop, say so, keep the last map the page got for the downloads. */
+/** The module failed: stop and say so (the page keeps what it was sent for the downloads). */
 function fail(e) {
   playing = false;
   failure = { message: errorText(e) };
   // The poisoned objects are dropped, not freed (free() would throw too).
   slam = null;
   flow = null;
-  post({ type: FromWorker.MODULE_FAILED, message: failure.message, frames: mirror.poses.length });
+  post({ type: FromWorker.MODULE_FAILED, message: failure.message, frames: framesOk });
   reportState();
 }
 
-/** A download from the Slam, or from the mirror when the module has failed (`partial`). */
-function exportFrom(fromSlam, fromMirror) {
-  if (!failure && slam) {
-    try {
-      return { value: fromSlam(slam), partial: false };
-    } catch (e) {
-      if (!isModuleFailure(e)) throw e;
-      fail(e);
-    }
+/** A download from the Slam; undefined when the module has failed (the page then uses its copy). */
+function exportFrom(fromSlam) {
+  if (failure) return undefined;
+  if (!slam) return fromSlam(null);
+  try {
+    return fromSlam(slam);
+  } catch (e) {
+    if (!isModuleFailure(e)) throw e;
+    fail(e);
+    return undefined;
   }
-  return { value: fromMirror(mirror), partial: failure !== null };
 }
 
 // All work touching the module runs one job at a time, in message order.
@@ -219,7 +218,6 @@ function restart() {
   refreshCursor = 0;
   prefetch.clear();
   readAheadUntil = 0;
-  mirror.clear();
 }
 
 /** Never calls into the module: it must work when the module has failed. */
@@ -426,6 +424,12 @@ async function processNext() {
       testBreak = false;
       slam.free();
     }
+    if (testHang) {
+      // Test hook: what a panic on one of the module's threads leaves behind
+      // (this thread waits for it for ever).
+      if (typeof SharedArrayBuffer === 'function') Atomics.wait(new Int32Array(new SharedArrayBuffer(4)), 0, 0);
+      for (;;);
+    }
     const report = decoded
       ? slam.pushRgbaDepthPng(decoded.width, decoded.height, decoded.rgba, depth, frame.timestamp)
       : slam.pushFrame(colour, depth, frame.timestamp);
@@ -484,9 +488,6 @@ async function processNext() {
     radii: slam.radii().slice(refreshStart, refreshEnd),
     confidences: slam.confidences().slice(refreshStart, refreshEnd),
   };
-  mirror.update(surfels);
-  mirror.update(refresh);
-  mirror.addPose(r);
   const tCopy = performance.now();
 
   let ate = null;
@@ -690,26 +691,23 @@ self.onmessage = async (event) => {
       break;
     case ToWorker.EXPORT_PLY:
       serial(() => {
-        // After a failure: the map as the page last showed it.
-        const { value: bytes, partial } = exportFrom(
-          (s) => s.exportPly().slice(),
-          (m) => m.ply(),
-        );
-        post({ type: FromWorker.EXPORT, what: 'ply', bytes, name: seq?.name, partial }, [bytes.buffer]);
+        const bytes = exportFrom((s) => (s ? s.exportPly().slice() : new Uint8Array()));
+        if (bytes) post({ type: FromWorker.EXPORT, what: 'ply', bytes, name: seq?.name }, [bytes.buffer]);
+        else post({ type: FromWorker.EXPORT, what: 'ply', unavailable: true, name: seq?.name });
       });
       break;
     case ToWorker.EXPORT_TRAJECTORY:
       serial(() => {
-        const { value: text, partial } = exportFrom(
-          (s) => s.trajectoryTum(),
-          (m) => m.trajectoryTum(),
-        );
-        post({ type: FromWorker.EXPORT, what: 'trajectory', text, name: seq?.name, partial });
+        const text = exportFrom((s) => (s ? s.trajectoryTum() : ''));
+        if (text !== undefined) post({ type: FromWorker.EXPORT, what: 'trajectory', text, name: seq?.name });
+        else post({ type: FromWorker.EXPORT, what: 'trajectory', unavailable: true, name: seq?.name });
       });
       break;
     case ToWorker.TEST_BREAK:
-      if (testHooks) testBreak = true;
-      else post({ type: FromWorker.FATAL, message: 'test hooks are off (testHooks=1 in the worker URL)' });
+    case ToWorker.TEST_HANG:
+      if (!testHooks) post({ type: FromWorker.FATAL, message: 'test hooks are off (testHooks=1 in the worker URL)' });
+      else if (msg.type === ToWorker.TEST_BREAK) testBreak = true;
+      else testHang = true;
       break;
     default:
       post({ type: FromWorker.FATAL, message: `unknown message ${msg.type}` });

@@ -184,3 +184,35 @@ test('a module failure stops playback, keeps the downloads, and the next Play ru
     await env.close();
   }
 });
+
+test('a worker stuck inside the module is replaced; the downloads keep the map so far', { timeout: 600_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const env = await startBrowser();
+  try {
+    // stallMs: how long the page waits for a frame before it gives the worker up (30 s by default).
+    const { page, consoleErrors } = await openPage(env, '/?testHooks=1&stallMs=4000');
+    let s = await waitForStatus(page, (x) => x.framesProcessed >= 10, { timeoutMs: 120_000 });
+    // What a panic on one of the module's threads leaves: the worker waits for it for ever.
+    await page.evaluate(() => window.surfelSlamTest.hangModule());
+    s = await waitForStatus(page, (x) => x.failed, { timeoutMs: 60_000 });
+    const stuckAt = s.framesProcessed;
+    t.diagnostic(`worker replaced after ${stuckAt} frames: ${s.error}`);
+    assert.equal(s.playing, false, 'playback stopped');
+    assert.match(s.error ?? '', /stopped answering/);
+    const ply = await downloadPly(page);
+    assert.ok(ply.vertices > 10_000, `PLY of the map so far from the page's copy: ${ply.vertices} vertices`);
+    assert.equal((await downloadTrajectory(page)).length, stuckAt, 'one trajectory line per frame processed');
+
+    // Play opens the sequence again in the new worker and plays it to the end.
+    await waitForStatus(page, (x) => x.ready, { timeoutMs: 60_000 });
+    await page.locator('#play-button').click();
+    s = await waitForStatus(page, (x) => !x.failed && x.done && !x.playing, { timeoutMs: 240_000, log: (m) => t.diagnostic(m) });
+    t.diagnostic(`in the new worker: ${summary(s)}`);
+    assert.equal(s.framesProcessed, s.frameCount, 'the whole sample ran in the new worker');
+    assert.ok(Number.isFinite(s.ate) && s.ate < 0.05, `ATE ${s.ate} m`);
+    assert.equal(s.moduleFailures, 1);
+    assert.deepEqual(consoleErrors, [], 'no console errors');
+  } finally {
+    await env.close();
+  }
+});
