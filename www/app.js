@@ -115,7 +115,8 @@ function syncStatus() {
   status.framesLost = stats.framesLost;
   status.framesRecovered = stats.framesRecovered;
   status.framesFailed = stats.framesFailed;
-  status.surfels = stats.surfels;
+  status.surfels = stats.surfels; // in the map (the report's count)
+  status.surfelSlots = stats.surfelSlots; // the arrays' length (absorbed surfels not yet compacted included)
   status.ate = stats.ate;
   status.fps = Number(stats.fps.toFixed(2));
   status.msPerFrame = Number(stats.msPerFrame.toFixed(2));
@@ -413,7 +414,7 @@ const handlers = {
     }
     const error = groundTruthError(msg.timestamp, pose);
     status.positionErrorCm = error === null ? status.positionErrorCm : Number((error * 100).toFixed(3));
-    plots.add(msg.index, msg.result.timings, msg.surfels.count, error);
+    plots.add(msg.index, msg.result.timings, stats.surfels, error);
     status.plotFrames = plots.frames;
     views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow, msg.input.colourPreview, msg.input.depthPreview);
     if (msg.done) status.done = true;

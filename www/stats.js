@@ -28,6 +28,7 @@ export class Stats {
     this.framesRecovered = 0;
     this.framesFailed = 0;
     this.surfels = 0;
+    this.surfelSlots = 0;
     this.changed = undefined;
     this.ate = null;
     this.atePairs = 0;
@@ -54,7 +55,10 @@ export class Stats {
     else this.framesTracked++;
     this.lastVerdict = r.verdict;
     this.lastLostReason = r.lostReason ?? null;
-    this.surfels = msg.surfels.count;
+    // The report's count is what the map holds (absorbed surfels awaiting
+    // compaction left out, as in the PLY); the arrays' length is only what is drawn.
+    this.surfels = Number.isFinite(r.surfels) ? r.surfels : msg.surfels.count;
+    this.surfelSlots = msg.surfels.count;
     this.changed = msg.surfels.end - msg.surfels.start;
     this.frameIndex = msg.index;
     this.frameCount = msg.frameCount;

@@ -146,7 +146,7 @@ test('a module failure stops playback, keeps the downloads, and the next Play ru
     // The downloads still give the map and trajectory up to the failure.
     const ply = await downloadPly(page);
     t.diagnostic(`PLY after the failure: ${ply.vertices} vertices, ${ply.bytes} bytes`);
-    assert.ok(ply.vertices > 10_000 && ply.vertices <= s.surfels, `PLY of the map so far: ${ply.vertices} vertices (${s.surfels} surfels shown)`);
+    assert.ok(ply.vertices > 10_000 && ply.vertices <= s.surfelSlots, `PLY of the map so far: ${ply.vertices} vertices (${s.surfelSlots} slots)`);
     assert.equal(ply.bytes - ply.vertices * 35 > 0 && ply.bytes - ply.vertices * 35 < 1024, true, 'PLY size = header + 35 bytes a vertex');
     const poses = await downloadTrajectory(page);
     assert.equal(poses.length, failedAt, 'one trajectory line per frame processed');
