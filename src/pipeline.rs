@@ -105,6 +105,19 @@ pub enum PipelineError {
     /// The configuration is unusable.
     #[error("invalid configuration: {0}")]
     InvalidConfig(String),
+    /// The frame's timestamp is NaN or infinite (seconds or frame number).
+    #[error("timestamp must be a finite number, got {0}")]
+    InvalidTimestamp(f64),
+}
+
+/// Refuses a NaN or infinite timestamp: it would end up in the trajectory
+/// file and break every evaluation against ground truth.
+fn check_timestamp(timestamp: f64) -> Result<(), PipelineError> {
+    if timestamp.is_finite() {
+        Ok(())
+    } else {
+        Err(PipelineError::InvalidTimestamp(timestamp))
+    }
 }
 
 /// Tracking outcome of one frame.
@@ -222,8 +235,12 @@ pub struct FrameReport {
     pub residual_rms_m: f64,
     /// Conditioning of the final 6x6 system.
     pub conditioning: f64,
-    /// Surfels in the map after this frame.
+    /// Surfels the map holds after this frame ([`SurfelMap::live_len`]: the
+    /// PLY export's vertex count).
     pub surfels: usize,
+    /// Slots in the map's arrays after this frame ([`SurfelMap::len`]): the
+    /// surfels plus those absorbed into others and not yet compacted away.
+    pub surfel_slots: usize,
     /// Fusion counts.
     pub fusion: FusionStats,
     /// Verdict counts of the run so far, this frame included.
@@ -303,8 +320,10 @@ impl Pipeline {
         &self.trajectory
     }
 
-    /// Surfel index range added, merged or moved since the last call (for
-    /// incremental GPU uploads); see [`SurfelMap::take_changed_range`].
+    /// Surfel slots filled by new surfels or by surfels moved by a cleanup
+    /// or a spatial sort since the last call (for incremental GPU uploads),
+    /// within `0..map().len()`. Merges are not included: see
+    /// [`SurfelMap::take_changed_range`].
     pub fn take_changed_range(&mut self) -> std::ops::Range<usize> {
         self.map.take_changed_range()
     }
@@ -383,6 +402,7 @@ impl Pipeline {
             &mut DecodeScratch,
         ) -> Result<(), FrameError>,
     ) -> Result<FrameReport, PipelineError> {
+        check_timestamp(timestamp)?;
         let t0 = now_ms();
         // Decoded into buffers kept from frame to frame; taken out of `self`
         // for the call below and put back whatever its outcome.
@@ -467,7 +487,8 @@ impl Pipeline {
         }
     }
 
-    /// Processes one decoded frame. On error nothing changes.
+    /// Processes one decoded frame stamped `timestamp` (seconds or frame
+    /// number; must be finite). On error nothing changes.
     ///
     /// A frame judged lost is not fused and its pose is held at the last good
     /// one. While lost (and whenever the normal tracker fails) a wider
@@ -482,6 +503,7 @@ impl Pipeline {
         timestamp: f64,
     ) -> Result<FrameReport, PipelineError> {
         self.decoded_was_pushed = false;
+        check_timestamp(timestamp)?;
         let input = self.config.intrinsics;
         frame.expect_size(input.width, input.height)?;
         frame.validate()?;
@@ -582,7 +604,8 @@ impl Pipeline {
             inlier_ratio: stats.map_or(1.0, |s| s.inlier_ratio),
             residual_rms_m: stats.map_or(0.0, |s| s.residual_rms_m),
             conditioning: stats.map_or(1.0, |s| s.conditioning),
-            surfels: self.map.len(),
+            surfels: self.map.live_len(),
+            surfel_slots: self.map.len(),
             fusion,
             counts: self.counts,
             timings: StageTimings {

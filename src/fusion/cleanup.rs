@@ -56,6 +56,9 @@ pub fn remove_unstable(
         let c = map.confidences[i];
         c >= stable || (c >= 0.0 && frame.saturating_sub(map.first_seen[i]) <= max_age)
     };
+    // Runs left from another map (a reset that kept them) would be read
+    // past this map's end: then the order starts again.
+    order.forget_beyond(map.len());
     order.before_removal(start, |i| !keep(map, i));
     map.retain_from(start, keep);
     // Every surfel before `settled` was settled at an earlier call, and the
@@ -72,7 +75,6 @@ pub fn remove_unstable(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fusion::ABSORBED;
     use glam::Vec3;
 
     #[test]
@@ -86,27 +88,63 @@ mod tests {
         // Settle the old surfels: a cleanup long after they were made.
         let frame = 100;
         assert_eq!(remove_unstable(&mut map, &config, frame, &mut order), 0);
-        let absorb = |map: &mut SurfelMap, i: usize| {
-            map.confidences[i] = ABSORBED;
-            map.first_absorbed = Some(map.first_absorbed.map_or(i, |a| a.min(i)));
-        };
         for i in [3, 7] {
-            absorb(&mut map, i);
+            map.absorb(i);
         }
+        assert_eq!((map.live_len(), map.absorbed_len()), (98, 2));
         assert_eq!(
             remove_unstable(&mut map, &config, frame + 10, &mut order),
             0
         );
         assert_eq!(map.len(), 100);
+        assert_eq!((map.live_len(), map.absorbed_len()), (98, 2));
         for i in [20, 30, 40] {
-            absorb(&mut map, i);
+            map.absorb(i);
         }
         assert_eq!(
             remove_unstable(&mut map, &config, frame + 20, &mut order),
             5
         );
         assert_eq!(map.len(), 95);
+        assert_eq!((map.live_len(), map.absorbed_len()), (95, 0));
         assert!(map.confidences.iter().all(|&c| c >= 0.0));
         assert_eq!(map.positions[3], Vec3::splat(4.0), "order kept");
+    }
+
+    #[test]
+    fn a_cleanup_with_the_sorted_runs_of_a_larger_map_does_not_read_past_the_end() {
+        let config = FusionConfig::default();
+        let mut order = SpatialOrder::default();
+        let mut map = SurfelMap::default();
+        for i in 0..3000 {
+            map.push(
+                Vec3::splat(i as f32 * 1e-3),
+                Vec3::Z,
+                [0; 4],
+                0.01,
+                10.0,
+                i / 100,
+            );
+        }
+        remove_unstable(&mut map, &config, 40, &mut order);
+        remove_unstable(&mut map, &config, 50, &mut order);
+        // A new, smaller map with the same order (as a reset that forgot it).
+        map.clear();
+        for i in 0..500 {
+            map.push(
+                Vec3::splat(i as f32 * 1e-3),
+                Vec3::Z,
+                [0; 4],
+                0.01,
+                10.0,
+                i / 100,
+            );
+        }
+        map.absorb(7);
+        remove_unstable(&mut map, &config, 30, &mut order);
+        assert_eq!(map.len(), 499);
+        assert_eq!(map.live_len(), 499);
+        remove_unstable(&mut map, &config, 40, &mut order);
+        assert_eq!(map.len(), 499);
     }
 }

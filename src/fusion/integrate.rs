@@ -362,8 +362,7 @@ fn absorb_redundant(
             map.set_surfel(b, &merged);
             map.grow_bounds(b, merged.position, merged.position);
         }
-        map.confidences[j] = ABSORBED;
-        map.first_absorbed = Some(map.first_absorbed.map_or(j, |a| a.min(j)));
+        map.absorb(j);
         absorbed += 1;
     }
     absorbed

@@ -68,6 +68,15 @@ impl SpatialOrder {
         self.keys.clear();
     }
 
+    /// Forgets the runs if they reach past a map of `len` surfels: they were
+    /// made for another map (emptied or replaced without [`SpatialOrder::clear`])
+    /// and would index surfels that are gone.
+    pub fn forget_beyond(&mut self, len: usize) {
+        if self.runs.last().is_some_and(|r| r.end > len) {
+            self.runs.clear();
+        }
+    }
+
     /// Makes room for sorting the longest run `map` can hold now, so that
     /// sorting allocates only when the map itself grew (its memory stays
     /// flat once it is full: tests/node/long_run.test.mjs).

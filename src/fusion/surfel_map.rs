@@ -5,6 +5,7 @@
 //! colours `[u8; 4]` RGBA with A = 255) and per-surfel loops vectorise.
 
 use super::chunk_bounds::{ChunkBounds, CHUNK};
+use super::ABSORBED;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -117,6 +118,9 @@ pub struct SurfelMap {
     /// Lowest index of a surfel absorbed into another since the last
     /// cleanup: the next cleanup compacts the map from there.
     pub(super) first_absorbed: Option<usize>,
+    /// Slots holding a surfel absorbed into another (see [`SurfelMap::absorb`])
+    /// that no cleanup has removed yet.
+    absorbed: usize,
 }
 
 impl ChunkMut<'_> {
@@ -171,10 +175,42 @@ impl SurfelMap {
         self.positions.capacity()
     }
 
-    /// Number of surfels.
+    /// Number of slots in the arrays: the surfels the map holds plus those
+    /// absorbed into others and not yet removed by a cleanup (negative
+    /// confidence). Every array has this length; the surfel budget counts it.
     #[must_use]
     pub fn len(&self) -> usize {
         self.positions.len()
+    }
+
+    /// Number of surfels the map holds: [`SurfelMap::len`] without the
+    /// absorbed ones awaiting removal. The PLY export writes exactly these.
+    #[must_use]
+    pub fn live_len(&self) -> usize {
+        self.len() - self.absorbed_len()
+    }
+
+    /// Slots holding a surfel absorbed into another, awaiting removal by a
+    /// cleanup (which compacts them only when they are many, see
+    /// `remove_unstable`).
+    #[must_use]
+    pub fn absorbed_len(&self) -> usize {
+        self.absorbed.min(self.len())
+    }
+
+    /// Marks surfel `i` as absorbed into another: confidence [`ABSORBED`],
+    /// no longer a candidate nor predicted, removed by a later cleanup.
+    /// Does nothing if `i` is out of range or already absorbed.
+    pub fn absorb(&mut self, i: usize) {
+        let Some(c) = self.confidences.get_mut(i) else {
+            return;
+        };
+        if *c < 0.0 {
+            return;
+        }
+        *c = ABSORBED;
+        self.absorbed += 1;
+        self.first_absorbed = Some(self.first_absorbed.map_or(i, |a| a.min(i)));
     }
 
     /// True when the map holds no surfel.
@@ -195,9 +231,10 @@ impl SurfelMap {
         }
     }
 
-    /// The index range whose slots were filled by new surfels or by surfels
-    /// moved when others were removed, since the last call, clamped to the
-    /// current length; resets it. Merges are not included: they refine a
+    /// The index range whose slots were filled by new surfels, or by surfels
+    /// moved when others were removed or when settled surfels were sorted in
+    /// space, since the last call, clamped to the current length; resets it.
+    /// Merges (and absorptions) are not included: they refine a
     /// surfel's position, normal and colour by less than the sensor noise, so
     /// a renderer that uploads this range every frame, draws `len()` surfels
     /// and refreshes the rest in a rolling window shows the map correctly
@@ -217,6 +254,7 @@ impl SurfelMap {
         self.bounds.clear();
         self.last_cleanup = None;
         self.first_absorbed = None;
+        self.absorbed = 0;
         self.positions.clear();
         self.normals.clear();
         self.colours.clear();
@@ -346,9 +384,11 @@ impl SurfelMap {
         let start = start.min(len);
         let mut write = start;
         let mut first_removed = None;
+        let mut absorbed_removed = 0;
         for read in start..len {
             if !keep(self, read) {
                 first_removed.get_or_insert(read);
+                absorbed_removed += usize::from(self.confidences[read] < 0.0);
                 continue;
             }
             if write != read {
@@ -367,6 +407,7 @@ impl SurfelMap {
             self.mark_changed(len.saturating_sub(1));
         }
         let first_removed = first_removed.unwrap_or(write);
+        self.absorbed = self.absorbed.saturating_sub(absorbed_removed);
         self.positions.truncate(write);
         self.normals.truncate(write);
         self.colours.truncate(write);

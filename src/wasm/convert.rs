@@ -64,7 +64,12 @@ export interface FrameReport {
   /** RMS point-to-plane residual, metres. */
   residual: number;
   conditioning: number;
-  surfels: number; merged: number; added: number; removed: number;
+  /** Surfels the map holds (Slam.liveSurfels; the PLY's vertex count). */
+  surfels: number;
+  /** Length of the surfel arrays (Slam.surfelCount): surfels plus those absorbed and not yet compacted away. */
+  surfelSlots: number;
+  /** This frame: measurements merged, surfels added, surfels removed by a cleanup, surfels absorbed into others. */
+  merged: number; added: number; removed: number; absorbed: number;
   /** New surfels not added because the map was at maxSurfels. */
   skipped: number;
   /** Verdict counts of the run so far, this frame included; lostStreak: frames lost in a row. */
@@ -460,6 +465,8 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
         ("residual", r.residual_rms_m.into()),
         ("conditioning", r.conditioning.into()),
         ("surfels", (r.surfels as f64).into()),
+        ("surfelSlots", (r.surfel_slots as f64).into()),
+        ("absorbed", (r.fusion.absorbed as f64).into()),
         ("merged", (r.fusion.merged as f64).into()),
         ("added", (r.fusion.added as f64).into()),
         ("removed", (r.fusion.removed as f64).into()),

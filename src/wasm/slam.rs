@@ -27,16 +27,6 @@ fn js_error(e: &PipelineError) -> JsError {
     JsError::new(&e.to_string())
 }
 
-fn check_timestamp(timestamp: f64) -> Result<(), JsError> {
-    if timestamp.is_finite() {
-        Ok(())
-    } else {
-        Err(JsError::new(&format!(
-            "timestamp must be a finite number, got {timestamp}"
-        )))
-    }
-}
-
 // `Vec3` is `#[repr(C)] { x, y, z: f32 }`: a `[Vec3]` is a `[f32]` three times
 // as long. Checked at compile time.
 const _: () = assert!(
@@ -101,7 +91,6 @@ impl Slam {
         depth: &[u8],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
-        check_timestamp(timestamp)?;
         let report = self
             .pipeline
             .push_png(colour, depth, timestamp)
@@ -124,7 +113,6 @@ impl Slam {
         #[wasm_bindgen(js_name = "depthPng")] depth_png: &[u8],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
-        check_timestamp(timestamp)?;
         let report = self
             .pipeline
             .push_pixels_and_depth_png(width as usize, height as usize, rgba, depth_png, timestamp)
@@ -144,7 +132,6 @@ impl Slam {
         depth: &[u16],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
-        check_timestamp(timestamp)?;
         let settings = self.pipeline.config().depth;
         let frame = RgbdFrame::from_raw(width as usize, height as usize, rgba, depth, &settings)
             .map_err(|e| js_error(&e.into()))?;
@@ -169,11 +156,23 @@ impl Slam {
         Float32Array::from(self.preview.as_slice())
     }
 
-    /// Number of surfels in the map.
+    /// Length of the surfel arrays (`positions()` holds `3 * surfelCount`
+    /// floats): what a renderer draws and uploads. It includes surfels
+    /// absorbed into others and not yet compacted away (negative
+    /// confidence: skip them when drawing); `liveSurfels` is the map's size.
     #[wasm_bindgen(getter, js_name = surfelCount)]
     #[must_use]
     pub fn surfel_count(&self) -> u32 {
         u32::try_from(self.pipeline.map().len()).unwrap_or(u32::MAX)
+    }
+
+    /// Surfels the map holds: `surfelCount` without the absorbed ones
+    /// awaiting removal. Equals the vertex count of `exportPly()` and the
+    /// last report's `surfels`; show this one to users.
+    #[wasm_bindgen(getter, js_name = liveSurfels)]
+    #[must_use]
+    pub fn live_surfels(&self) -> u32 {
+        u32::try_from(self.pipeline.map().live_len()).unwrap_or(u32::MAX)
     }
 
     /// Frames pushed (accepted) since creation or the last reset.
@@ -218,8 +217,11 @@ impl Slam {
         f32_view(&self.pipeline.map().confidences)
     }
 
-    /// `[start, end]`: surfel indices added, merged or moved since the last
-    /// call (re-upload this range and draw `surfelCount` surfels).
+    /// `[start, end]`: surfel slots filled by new surfels, or by surfels
+    /// moved by a cleanup or a spatial sort, since the last call (re-upload
+    /// this range and draw `surfelCount` surfels). Merges are not included:
+    /// they refine surfels by less than the sensor noise, so refresh the
+    /// rest of the arrays in a rolling window to show them.
     #[wasm_bindgen(js_name = takeChangedRange, unchecked_return_type = "[number, number]")]
     pub fn take_changed_range(&mut self) -> Array {
         let range = self.pipeline.take_changed_range();
@@ -244,7 +246,8 @@ impl Slam {
         write_ply(self.pipeline.map())
     }
 
-    /// Forgets the map and the trajectory; keeps the configuration.
+    /// Forgets the map and the trajectory; keeps the configuration. Pushing
+    /// the same frames again gives the same trajectory.
     pub fn reset(&mut self) {
         self.pipeline.reset();
     }

@@ -9,13 +9,18 @@ use surfel_slam::dataset::{read_frame, Sequence};
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
 use surfel_slam::{DepthSettings, FrameReport, Intrinsics, Pipeline, SlamConfig, Verdict};
 
-/// A real dataset folder under ../shared/data, or `None` (with a message) when absent.
+/// A real dataset folder under ../shared/data, or `None` (with a message)
+/// when absent; panics when absent and `CI=true`.
 pub fn shared_dataset(name: &str) -> Option<PathBuf> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/data")
         .join(name);
     if dir.is_dir() {
         Some(dir)
+    } else if std::env::var("CI").is_ok_and(|v| v == "true") {
+        // CI has shared/ beside the checkout: a missing sequence there is a
+        // broken setup, not a reason to pass without testing.
+        panic!("{} not found and CI=true", dir.display());
     } else {
         eprintln!(
             "skipping: {} not found (../shared/data is absent)",
