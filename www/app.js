@@ -379,7 +379,9 @@ const handlers = {
 
   [FromWorker.SEQUENCE](msg) {
     if (loading?.name === msg.name) lastLoad = loading;
-    sequence = { name: msg.name, kind: msg.kind, preset: msg.preset, frameCount: msg.frameCount, groundTruth: msg.groundTruth };
+    // Sorted by time: groundTruthAt searches it.
+    const groundTruth = [...msg.groundTruth].sort((a, b) => a[0] - b[0]);
+    sequence = { name: msg.name, kind: msg.kind, preset: msg.preset, frameCount: msg.frameCount, groundTruth };
     setDisplayFrame(msg.config);
     status.failed = false;
     status.sequence = msg.name;

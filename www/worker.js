@@ -154,7 +154,6 @@ async function ensureSlam() {
   await freshModule();
   if (slam || !config) return;
   createSlam(config);
-  post({ type: FromWorker.RESET, config });
 }
 
 async function initModule() {
@@ -576,7 +575,7 @@ async function pump() {
       // Checked inside the serial job: a reset or replay queued before it has run by then.
       const more = await serial(async () => {
         if (!playing || failure) return false;
-        if (!seq || next >= seq.frames.length) {
+        if (!seq || !slam || next >= seq.frames.length) {
           playing = false;
           return false;
         }
@@ -630,7 +629,7 @@ self.onmessage = async (event) => {
       break;
     case ToWorker.PLAY:
       serial(async () => {
-        if (failure) await resetMap();
+        if (failure || !slam) await resetMap();
         // Play after the end starts again from an empty map.
         else if (seq && next >= seq.frames.length) await resetMap();
       });

@@ -163,6 +163,8 @@ test('a module failure stops playback, keeps the downloads, and the next Play ru
     assert.equal(s.errors.length, 1, `only the failure was reported: ${JSON.stringify(s.errors)}`);
     const fresh = await downloadPly(page);
     assert.ok(fresh.vertices > ply.vertices, `PLY of the new, whole map: ${fresh.vertices} vertices`);
+    assert.equal(s.surfels, fresh.vertices, 'the surfel count shown is what the map holds (the PLY)');
+    assert.match(await page.locator('#stats').textContent(), new RegExp(fresh.vertices.toLocaleString('en-US')));
     assert.equal((await downloadTrajectory(page)).length, s.frameCount);
 
     // A settings change restarts the sequence and plays it; Pause stops it.
