@@ -150,7 +150,7 @@ export class Plots {
     this.charts = {
       timing: canvases.timing ? new Chart(canvases.timing, 'ms per frame by stage', 'ms') : null,
       surfels: canvases.surfels ? new Chart(canvases.surfels, 'surfels in the map', '') : null,
-      error: canvases.error ? new Chart(canvases.error, 'error vs ground truth', 'cm') : null,
+      error: canvases.error ? new Chart(canvases.error, 'error vs GT aligned at start', 'cm') : null,
     };
     this.visible = true;
     this.timer = null;

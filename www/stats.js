@@ -116,12 +116,12 @@ export class Stats {
       ['failed (errors)', `${this.framesFailed}`],
       ['last verdict', this.lastVerdict ? this.lastVerdict + (this.lastLostReason ? ` (${this.lastLostReason})` : '') : '–'],
       ['surfels', this.surfels.toLocaleString('en-US')],
+      ['ATE rmse', this.ate === null ? '–' : `${(this.ate * 100).toFixed(this.ate < 0.01 ? 2 : 1)} cm (${this.atePairs} poses)`],
       ['fps', this.fps > 0 ? f1(this.fps) : '–'],
       ['ms / frame (wasm)', f1(this.stageMs.total)],
       ...STAGES.slice(0, -1).map((s) => [`\u2003${s}`, f1(this.stageMs[s])]),
       ['ms / frame (worker)', f1(this.wallMs)],
       ['changed surfels', this.changed === undefined ? '–' : this.changed.toLocaleString('en-US')],
-      ['ATE rmse', this.ate === null ? '–' : `${(this.ate * 100).toFixed(this.ate < 0.01 ? 2 : 1)} cm (${this.atePairs} poses)`],
     ];
     this.table.replaceChildren(
       ...rows.map(([k, v]) => {
