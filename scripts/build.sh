@@ -64,6 +64,14 @@ mkdir -p pkg
 wasm-bindgen --target web --out-dir pkg "$st_wasm"
 if [[ $threads == 1 ]]; then
   wasm-bindgen --target web --out-dir pkg/threads "$mt_wasm"
+  # wasm-bindgen-rayon 1.3's thread helper starts each thread with the init
+  # function's old positional form, and every thread logs "using deprecated
+  # parameters for the initialization function": pass the object form.
+  for helper in pkg/threads/snippets/wasm-bindgen-rayon-*/src/workerHelpers*.js; do
+    if [[ -f $helper ]]; then
+      sed -i 's/pkg\.default(data\.module, data\.memory)/pkg.default({ module_or_path: data.module, memory: data.memory })/' "$helper"
+    fi
+  done
 fi
 
 echo "== package"

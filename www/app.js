@@ -4,8 +4,11 @@
 import { Renderer } from './renderer.js';
 import { InputViews } from './views.js';
 import { Stats } from './stats.js';
+import { Plots, STAGE_COLOURS } from './plots.js';
 import { fromManifest, setupSequenceInput } from './sequence.js';
 import { poseFromTq, multiply, invertRigid, transformPoint } from './math3d.js';
+import { ToWorker, FromWorker } from './protocol.js';
+import { MapMirror } from './map-mirror.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -37,6 +40,11 @@ const status = {
   sequence: null,
   sequenceKind: null,
   errors: [],
+  moduleFailures: 0, // times the wasm module failed (each time rebuilt at the next action)
+  failed: false, // the module has failed and not been rebuilt yet
+  positionErrorCm: null, // last frame's distance to the ground truth (aligned at its first pose), cm
+  displayFlipY: false, // the map is shown mirrored in y (negative fy: ICL-NUIM) so that it is upright
+  plotFrames: 0, // frames in the plots
 };
 window.surfelSlamStatus = status;
 
@@ -56,6 +64,8 @@ const ui = {
   cx: $('cx'),
   cy: $('cy'),
   depthScale: $('depth-scale'),
+  tracker: $('tracker'),
+  half: $('half-resolution'),
 };
 
 let presets = [];
@@ -98,13 +108,15 @@ try {
 const views = new InputViews($('colour-view'), $('depth-view'), $('depth-caption'));
 views.clear();
 const stats = new Stats($('stats'));
+const plots = new Plots({ timing: $('plot-timing'), surfels: $('plot-surfels'), error: $('plot-error') });
 
 function syncStatus() {
   status.framesProcessed = stats.framesProcessed;
   status.framesLost = stats.framesLost;
   status.framesRecovered = stats.framesRecovered;
   status.framesFailed = stats.framesFailed;
-  status.surfels = stats.surfels;
+  status.surfels = stats.surfels; // in the map (the report's count)
+  status.surfelSlots = stats.surfelSlots; // the arrays' length (absorbed surfels not yet compacted included)
   status.ate = stats.ate;
   status.fps = Number(stats.fps.toFixed(2));
   status.msPerFrame = Number(stats.msPerFrame.toFixed(2));
@@ -134,13 +146,73 @@ const workerUrl = new URL('./worker.js', import.meta.url);
 if (new URLSearchParams(location.search).get('threads') === '0') workerUrl.searchParams.set('threads', '0');
 // ?colour=wasm decodes colour images in wasm instead of the browser (for comparisons).
 if (new URLSearchParams(location.search).get('colour') === 'wasm') workerUrl.searchParams.set('colour', 'wasm');
-const worker = new Worker(workerUrl, { type: 'module' });
-worker.onerror = (e) => {
-  reportError(`the worker failed: ${e.message || 'could not start (is www/pkg/ built? run scripts/build.sh)'}`);
-};
+// ?testHooks=1 lets the browser tests make the module fail (ToWorker.TEST_BREAK).
+if (new URLSearchParams(location.search).get('testHooks') === '1') workerUrl.searchParams.set('testHooks', '1');
+const testHooks = new URLSearchParams(location.search).get('testHooks') === '1';
+// No message for this long while playing: the worker is stuck (a panic on
+// one of the module's threads leaves the worker's own thread waiting for it
+// for ever); the page then starts a new worker.
+const STALL_MS = (testHooks && Number(new URLSearchParams(location.search).get('stallMs'))) || 30_000;
+
+let worker = null;
+let lastHeard = performance.now(); // the last message to or from the worker
+let lastLoad = null; // {name, entries} of the sequence the worker has open
+let loading = null; // the same, for the sequence being opened
+let pendingReload = null; // {name, entries}: to open in a new worker at the next action
+
+function startWorker() {
+  worker = new Worker(workerUrl, { type: 'module' });
+  worker.onerror = (e) => {
+    reportError(`the worker failed: ${e.message || 'could not start (is www/pkg/ built? run scripts/build.sh)'}`);
+  };
+  worker.onmessage = onWorkerMessage;
+  lastHeard = performance.now();
+}
 
 function send(msg) {
+  lastHeard = performance.now();
   worker.postMessage(msg);
+}
+
+// The map and trajectory as the page was sent them: the downloads after a failure.
+const mirror = new MapMirror();
+
+function restartWorker() {
+  worker.terminate();
+  status.moduleFailures++;
+  status.failed = true;
+  status.ready = false;
+  status.playing = false;
+  workerPlaying = false;
+  pendingReload = lastLoad;
+  reportError(
+    `the SLAM worker stopped answering (${Math.round(STALL_MS / 1000)} s without a frame): restarted it. ` +
+      'The downloads keep the map and trajectory so far; Play, Step or Reset starts the sequence again.',
+  );
+  startWorker();
+  setControls();
+}
+
+setInterval(() => {
+  if (workerPlaying && status.ready && performance.now() - lastHeard > STALL_MS) restartWorker();
+}, 1000);
+
+/** Playback and settings messages: after a worker restart, the sequence is opened again first. */
+function act(msg) {
+  if (pendingReload) {
+    const plays = msg.type === ToWorker.PLAY || msg.type === ToWorker.REPLAY;
+    loadSequence(pendingReload, plays);
+    pendingReload = null;
+    if (plays || msg.type === ToWorker.RESET) return;
+  }
+  send(msg);
+}
+
+/** A download from the page's copy (the module has failed). */
+function downloadMirror(what) {
+  const base = (sequence?.name || 'surfel-slam').replace(/[^\w.-]+/g, '_');
+  if (what === 'ply') download(new Blob([mirror.ply()], { type: 'application/octet-stream' }), `${base}_map.ply`);
+  else download(new Blob([mirror.trajectoryTum()], { type: 'text/plain' }), `${base}_trajectory.txt`);
 }
 
 function setControls() {
@@ -148,9 +220,10 @@ function setControls() {
   ui.play.disabled = !has;
   ui.step.disabled = !has || workerPlaying;
   ui.reset.disabled = !has;
-  ui.ply.disabled = !status.ready;
-  ui.trajectory.disabled = !status.ready;
+  ui.ply.disabled = !status.ready && !status.failed;
+  ui.trajectory.disabled = !status.ready && !status.failed;
   ui.play.textContent = workerPlaying ? 'Pause' : status.done ? 'Replay' : 'Play';
+  ui.play.title = workerPlaying ? 'stop after this frame' : status.done ? 'empty the map and play again from the first frame' : '';
 }
 
 function fillPresetSelect() {
@@ -186,9 +259,45 @@ function currentIntrinsics() {
     cx: num(ui.cx, base.cx),
     cy: num(ui.cy, base.cy),
     depthScale: num(ui.depthScale, base.depthScale),
-    tracker: $('tracker').value,
+    tracker: ui.tracker.value,
+    halfResolution: ui.half.checked,
   };
 }
+
+/** The choices on the page that a newly opened sequence keeps. */
+const pageOptions = () => ({ tracker: ui.tracker.value, halfResolution: ui.half.checked });
+
+// ---- display frame -----------------------------------------------------------------
+// The map and the poses are in the dataset's convention. With a negative fy
+// (ICL-NUIM) the camera's y axis points up in the image, so the map is the
+// mirror image of the scene: shown as it is, it is upside down and
+// mirrored. The page shows it through F = diag(1, -1, 1) (points p -> F p,
+// poses T -> F T F), which is the map a camera with a positive fy would have
+// built: upright, right-handed. The downloads keep the dataset's convention.
+let flipY = false;
+const F = new Float64Array([1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
+const IDENTITY = new Float64Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
+
+/** config: a Slam config ({preset, fy?, ...}); fy, when absent, is the preset's. */
+function setDisplayFrame(config) {
+  const fy = config?.fy ?? presets.find((p) => p.name === config?.preset)?.fy;
+  if (Number.isFinite(fy)) flipY = fy < 0;
+  status.displayFlipY = flipY;
+}
+
+const displayPose = (pose) => (flipY ? multiply(F, multiply(pose, F)) : pose);
+
+/** Mirrors a surfel chunk's positions and normals in y, in place (its arrays are this page's own). */
+function displayChunk(chunk) {
+  if (!flipY || !chunk) return chunk;
+  for (const key of ['positions', 'normals']) {
+    const a = chunk[key];
+    for (let i = 1; i < a.length; i += 3) a[i] = -a[i];
+  }
+  return chunk;
+}
+
+const displayIntrinsics = (k) => (flipY ? { ...k, fy: Math.abs(k.fy) } : k);
 
 function clearMap() {
   renderer?.clear();
@@ -200,28 +309,61 @@ function clearMap() {
   status.framesColourDecodedInBrowser = 0;
   run = { first: 0, frames: 0 };
   gtAnchored = false;
+  gtAlign = null;
+  status.positionErrorCm = null;
+  mirror.clear();
+  plots.reset();
+  plots.setGroundTruth(!!sequence?.groundTruth?.length);
+  status.plotFrames = 0;
   views.clear();
 }
 
-/** Draws the ground truth, anchored to the estimate at the first frame with a ground-truth pose. */
-function anchorGroundTruth(timestamp, pose) {
-  if (gtAnchored || !sequence?.groundTruth?.length || !renderer) return;
+let gtAlign = null; // display-frame transform from the ground truth to the estimate, set at its first pose
+const gtPose = (row) => displayPose(poseFromTq([row[1], row[2], row[3]], [row[4], row[5], row[6], row[7]]));
+
+/** The ground-truth row nearest `timestamp` (rows sorted by time), within the dataset's tolerance, or null. */
+function groundTruthAt(timestamp) {
+  const rows = sequence?.groundTruth;
+  if (!rows?.length) return null;
   const tolerance = sequence.kind === 'tum' ? 0.02 : 0.5;
-  let best = null;
-  for (const row of sequence.groundTruth) {
-    const dt = Math.abs(row[0] - timestamp);
-    if (dt <= tolerance && (!best || dt < best.dt)) best = { dt, row };
+  let lo = 0;
+  let hi = rows.length - 1;
+  while (lo < hi) {
+    const mid = (lo + hi) >> 1;
+    if (rows[mid][0] < timestamp) lo = mid + 1;
+    else hi = mid;
   }
-  if (!best) return;
-  const gtPose = (row) => poseFromTq([row[1], row[2], row[3]], [row[4], row[5], row[6], row[7]]);
-  const align = multiply(pose, invertRigid(gtPose(best.row)));
-  renderer.setGroundTruth(sequence.groundTruth.map((row) => transformPoint(align, [row[1], row[2], row[3]])));
-  gtAnchored = true;
+  let best = null;
+  for (const i of [lo - 1, lo]) {
+    if (i < 0 || i >= rows.length) continue;
+    const dt = Math.abs(rows[i][0] - timestamp);
+    if (dt <= tolerance && (!best || dt < best.dt)) best = { dt, row: rows[i] };
+  }
+  return best?.row ?? null;
+}
+
+/**
+ * Draws the ground truth, anchored to the estimate at the first frame with a
+ * ground-truth pose, and returns this frame's position error (metres) against
+ * it, or null. `pose`: display frame.
+ */
+function groundTruthError(timestamp, pose) {
+  if (!sequence?.groundTruth?.length) return null;
+  const row = groundTruthAt(timestamp);
+  if (!row) return null;
+  if (!gtAnchored) {
+    gtAlign = multiply(pose, invertRigid(gtPose(row)));
+    renderer?.setGroundTruth(sequence.groundTruth.map((r) => transformPoint(gtAlign, transformPoint(flipY ? F : IDENTITY, [r[1], r[2], r[3]]))));
+    gtAnchored = true;
+  }
+  const p = transformPoint(gtAlign, transformPoint(flipY ? F : IDENTITY, [row[1], row[2], row[3]]));
+  return Math.hypot(p[0] - pose[12], p[1] - pose[13], p[2] - pose[14]);
 }
 
 const handlers = {
-  ready(msg) {
+  [FromWorker.READY](msg) {
     status.ready = true;
+    if ($('show-flow').checked) send({ type: ToWorker.FLOW, enabled: true });
     status.module = msg.module;
     status.threads = msg.threads;
     status.frameReader = msg.frameReader === true;
@@ -235,8 +377,13 @@ const handlers = {
     setControls();
   },
 
-  sequence(msg) {
-    sequence = { name: msg.name, kind: msg.kind, preset: msg.preset, frameCount: msg.frameCount, groundTruth: msg.groundTruth };
+  [FromWorker.SEQUENCE](msg) {
+    if (loading?.name === msg.name) lastLoad = loading;
+    // Sorted by time: groundTruthAt searches it.
+    const groundTruth = [...msg.groundTruth].sort((a, b) => a[0] - b[0]);
+    sequence = { name: msg.name, kind: msg.kind, preset: msg.preset, frameCount: msg.frameCount, groundTruth };
+    setDisplayFrame(msg.config);
+    status.failed = false;
     status.sequence = msg.name;
     status.sequenceKind = msg.kind;
     status.frameCount = msg.frameCount;
@@ -252,19 +399,25 @@ const handlers = {
     setControls();
   },
 
-  frame(msg) {
+  [FromWorker.FRAME](msg) {
     const t0 = performance.now();
     status.flowTracks = msg.flow?.tracks ? msg.flow.tracks.length / 4 : 0;
     stats.onFrame(msg);
     countRunFrame(msg);
     noteColourDecoder(msg);
+    mirror.update(msg.surfels);
+    if (msg.refresh) mirror.update(msg.refresh);
+    mirror.addPose(msg.result);
+    const pose = displayPose(msg.result.pose);
     if (renderer) {
-      renderer.updateSurfels(msg.surfels);
-      if (msg.refresh) renderer.updateSurfels(msg.refresh);
-      const intr = currentIntrinsics();
-      renderer.setCameraPose(msg.result.pose, intr);
-      anchorGroundTruth(msg.timestamp, msg.result.pose);
+      renderer.updateSurfels(displayChunk(msg.surfels));
+      if (msg.refresh) renderer.updateSurfels(displayChunk(msg.refresh));
+      renderer.setCameraPose(pose, displayIntrinsics(currentIntrinsics()));
     }
+    const error = groundTruthError(msg.timestamp, pose);
+    status.positionErrorCm = error === null ? status.positionErrorCm : Number((error * 100).toFixed(3));
+    plots.add(msg.index, msg.result.timings, stats.surfels, error);
+    status.plotFrames = plots.frames;
     views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow, msg.input.colourPreview, msg.input.depthPreview);
     if (msg.done) status.done = true;
     syncStatus();
@@ -275,7 +428,7 @@ const handlers = {
     status.gpuMs = renderer ? Math.round(renderer.gpuMs) : 0;
   },
 
-  'frame-error'(msg) {
+  [FromWorker.FRAME_ERROR](msg) {
     stats.onFailedFrame(msg);
     noteColourDecoder(msg);
     if (msg.input) views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || 5000, null, msg.input.colourPreview);
@@ -283,16 +436,17 @@ const handlers = {
     syncStatus();
   },
 
-  'load-error'(msg) {
+  [FromWorker.LOAD_ERROR](msg) {
     reportError(`cannot open the sequence: ${msg.message}${sequence ? ' (the current map is kept)' : ''}`);
   },
 
-  'config-error'(msg) {
+  [FromWorker.CONFIG_ERROR](msg) {
     reportError(msg.message);
   },
 
-  state(msg) {
+  [FromWorker.STATE](msg) {
     workerPlaying = msg.playing;
+    status.failed = msg.failed === true;
     if (renderer) renderer.throttle = msg.playing;
     status.playing = msg.playing;
     status.done = msg.done;
@@ -304,23 +458,42 @@ const handlers = {
     setControls();
   },
 
-  reset() {
+  [FromWorker.RESET](msg) {
+    if (msg.config) setDisplayFrame(msg.config);
+    status.failed = false;
     clearMap();
     setControls();
   },
 
-  export(msg) {
+  [FromWorker.MODULE_FAILED](msg) {
+    status.moduleFailures++;
+    status.failed = true;
+    workerPlaying = false;
+    status.playing = false;
+    reportError(
+      `the SLAM module failed after ${msg.frames} frames (${msg.message}). Playback stopped; ` +
+        'the downloads keep the map and trajectory so far; Play, Step or Reset starts again on a fresh module.',
+    );
+    setControls();
+  },
+
+  [FromWorker.EXPORT](msg) {
+    if (msg.unavailable) {
+      downloadMirror(msg.what);
+      return;
+    }
     const base = (msg.name || 'surfel-slam').replace(/[^\w.-]+/g, '_');
     if (msg.what === 'ply') download(new Blob([msg.bytes], { type: 'application/octet-stream' }), `${base}_map.ply`);
     else download(new Blob([msg.text], { type: 'text/plain' }), `${base}_trajectory.txt`);
   },
 
-  fatal(msg) {
+  [FromWorker.FATAL](msg) {
     reportError(msg.message);
   },
 };
 
-worker.onmessage = (event) => {
+function onWorkerMessage(event) {
+  lastHeard = performance.now();
   const msg = event.data;
   const handler = handlers[msg.type];
   try {
@@ -328,7 +501,8 @@ worker.onmessage = (event) => {
   } catch (e) {
     reportError(`page error while handling ${msg.type}: ${e.message}`);
   }
-};
+}
+startWorker();
 
 function download(blob, name) {
   const url = URL.createObjectURL(blob);
@@ -344,35 +518,76 @@ function download(blob, name) {
 // ---- controls ------------------------------------------------------------------------
 
 ui.play.addEventListener('click', () => {
-  if (workerPlaying) send({ type: 'pause' });
-  else send({ type: 'play' });
+  if (workerPlaying) send({ type: ToWorker.PAUSE });
+  else act({ type: status.done ? ToWorker.REPLAY : ToWorker.PLAY });
   workerPlaying = !workerPlaying;
+  if (workerPlaying) status.done = false;
   setControls();
 });
-ui.step.addEventListener('click', () => send({ type: 'step' }));
-ui.reset.addEventListener('click', () => send({ type: 'reset' }));
-ui.ply.addEventListener('click', () => send({ type: 'exportPly' }));
-ui.trajectory.addEventListener('click', () => send({ type: 'exportTrajectory' }));
+ui.step.addEventListener('click', () => act({ type: ToWorker.STEP }));
+ui.reset.addEventListener('click', () => act({ type: ToWorker.RESET }));
+ui.ply.addEventListener('click', () => (status.failed ? downloadMirror('ply') : send({ type: ToWorker.EXPORT_PLY })));
+ui.trajectory.addEventListener('click', () =>
+  status.failed ? downloadMirror('trajectory') : send({ type: ToWorker.EXPORT_TRAJECTORY }),
+);
+
+/** New camera or tracker settings: the worker restarts the sequence with them and plays. */
+function applySettings() {
+  const c = currentIntrinsics();
+  if (![c.fx, c.fy, c.cx, c.cy, c.depthScale].every(Number.isFinite)) {
+    reportError('intrinsics: fx, fy, cx, cy and depth scale must be numbers');
+    return;
+  }
+  act({ type: ToWorker.CONFIG, config: c });
+}
 
 ui.preset.addEventListener('change', () => {
-  if (ui.preset.value !== 'custom') showIntrinsics(ui.preset.value);
+  if (ui.preset.value === 'custom') return;
+  showIntrinsics(ui.preset.value);
+  if (sequence) applySettings();
 });
 for (const el of [ui.fx, ui.fy, ui.cx, ui.cy, ui.depthScale]) {
   el.addEventListener('input', () => {
     ui.preset.value = 'custom';
   });
 }
-$('apply-intrinsics').addEventListener('click', () => {
-  const c = currentIntrinsics();
-  if (![c.fx, c.fy, c.cx, c.cy, c.depthScale].every(Number.isFinite)) {
-    reportError('intrinsics: fx, fy, cx, cy and depth scale must be numbers');
-    return;
-  }
-  send({ type: 'config', config: c });
+$('apply-intrinsics').addEventListener('click', applySettings);
+ui.tracker.addEventListener('change', () => {
+  if (sequence) applySettings();
 });
+ui.half.addEventListener('change', () => {
+  if (sequence) applySettings();
+});
+$('show-flow').addEventListener('change', (e) => send({ type: ToWorker.FLOW, enabled: e.target.checked }));
 
-$('tracker').addEventListener('change', () => send({ type: 'config', config: currentIntrinsics() }));
-$('show-flow').addEventListener('change', (e) => send({ type: 'flow', enabled: e.target.checked }));
+// The stage colours of the timing chart.
+$('plot-legend').replaceChildren(
+  ...Object.entries(STAGE_COLOURS).flatMap(([name, colour]) => {
+    const swatch = document.createElement('span');
+    swatch.style.background = colour;
+    return [swatch, document.createTextNode(name)];
+  }),
+);
+
+// A hint naming the panel's sections below the fold (at 1280x800 the
+// camera and view settings are); a click scrolls to the first.
+const panel = $('panel');
+const moreBelow = $('more-below');
+function updateMoreBelow() {
+  const bottom = panel.getBoundingClientRect().bottom - moreBelow.offsetHeight;
+  const hidden = [...panel.querySelectorAll('section h2')].filter((h) => h.getBoundingClientRect().top > bottom);
+  moreBelow.hidden = hidden.length === 0;
+  $('more-below-text').textContent = `below: ${hidden.map((h) => h.textContent).join(' · ')}`;
+  moreBelow.onclick = () => hidden[0]?.scrollIntoView({ behavior: 'smooth', block: 'start' });
+}
+panel.addEventListener('scroll', updateMoreBelow, { passive: true });
+window.addEventListener('resize', updateMoreBelow);
+const panelObserver = new ResizeObserver(updateMoreBelow); // messages and stats change the sections' heights
+for (const el of panel.children) panelObserver.observe(el);
+$('show-plots').addEventListener('change', (e) => {
+  $('plots').hidden = !e.target.checked;
+  plots.setVisible(e.target.checked);
+});
 
 $('colour-mode').addEventListener('change', (e) => renderer?.setMode(e.target.value));
 $('splat-size').addEventListener('input', (e) => {
@@ -406,9 +621,13 @@ $('view-button').addEventListener('click', () => {
 
 // ---- sequences -----------------------------------------------------------------------
 
+const urlParams = () => new URLSearchParams(location.search);
+
 function loadSequence(seq, autoplay) {
+  loading = { name: seq.name, entries: seq.entries };
+  pendingReload = null;
   ui.sequenceInfo.textContent = `reading ${seq.name} (${seq.entries.length} files)…`;
-  send({ type: 'load', name: seq.name, entries: seq.entries, autoplay });
+  send({ type: ToWorker.LOAD, name: seq.name, entries: seq.entries, autoplay, options: pageOptions() });
 }
 
 setupSequenceInput({
@@ -429,7 +648,14 @@ async function loadSample(autoplay) {
 }
 $('sample-button').addEventListener('click', () => loadSample(true));
 
+// ?testHooks=1: the browser tests can make the module fail, as a panic would.
+if (testHooks) {
+  window.surfelSlamTest = {
+    breakModule: () => send({ type: ToWorker.TEST_BREAK }),
+    hangModule: () => send({ type: ToWorker.TEST_HANG }),
+  };
+}
+
 // Autoplay the sample unless the URL says ?sample=0 (tests that upload a folder).
-const params = new URLSearchParams(location.search);
-if (params.get('sample') !== '0') loadSample(true);
+if (urlParams().get('sample') !== '0') loadSample(true);
 else ui.sequenceInfo.textContent = 'no sequence: open or drop a folder';

@@ -10,15 +10,11 @@
 // they run they take the cores from the wasm threads. A batch every
 // READ_BATCH frames leaves the frames in between undisturbed.
 //
-// Messages in:  {type: 'source', id, entries} (a sequence's files, as for
-//               SequenceSource), {type: 'read', id, index, colour, depth,
-//               decode} (relative paths; decode: false = read only),
-//               {type: 'readAhead', id, paths} (read now, keep the bytes for
-//               a later 'read').
-// Messages out: {id, index, colourBuf, depthBuf, decoded} (`decoded`:
-//               {width, height, rgba, preview} or null when wasm is to decode
-//               the colour image; `preview` the page's thumbnail, an
-//               ImageBitmap) or {id, index, error} (a file cannot be read).
+// Messages: ToReader in protocol.js. Out: {id, index, colourBuf, depthBuf,
+// decoded} (`decoded`: {width, height, rgba, preview} or null when wasm is to
+// decode the colour image; `preview` the page's thumbnail, an ImageBitmap) or
+// {id, index, error} (a file cannot be read).
+import { ToReader } from './protocol.js';
 import { SequenceSource } from './sequence.js';
 import { readAndDecodeColour } from './colour-decode.js';
 
@@ -38,7 +34,7 @@ const cachedReader = (source) => ({
 });
 
 self.onmessage = async ({ data }) => {
-  if (data.type === 'source') {
+  if (data.type === ToReader.SOURCE) {
     sources.clear();
     ahead.clear();
     sources.set(data.id, new SequenceSource(data.entries));
@@ -46,7 +42,7 @@ self.onmessage = async ({ data }) => {
   }
   const source = sources.get(data.id);
   if (!source) return; // a sequence replaced since: nobody waits for it
-  if (data.type === 'readAhead') {
+  if (data.type === ToReader.READ_AHEAD) {
     for (const path of data.paths) {
       if (ahead.has(path)) continue;
       const bytes = source.read(path);
@@ -55,7 +51,7 @@ self.onmessage = async ({ data }) => {
     }
     return;
   }
-  if (data.type !== 'read') return;
+  if (data.type !== ToReader.READ) return;
   const { id, index } = data;
   try {
     const frame = await readAndDecodeColour(cachedReader(source), data, data.decode !== false);

@@ -28,6 +28,7 @@ export class Stats {
     this.framesRecovered = 0;
     this.framesFailed = 0;
     this.surfels = 0;
+    this.surfelSlots = 0;
     this.changed = undefined;
     this.ate = null;
     this.atePairs = 0;
@@ -54,7 +55,10 @@ export class Stats {
     else this.framesTracked++;
     this.lastVerdict = r.verdict;
     this.lastLostReason = r.lostReason ?? null;
-    this.surfels = msg.surfels.count;
+    // The report's count is what the map holds (absorbed surfels awaiting
+    // compaction left out, as in the PLY); the arrays' length is only what is drawn.
+    this.surfels = Number.isFinite(r.surfels) ? r.surfels : msg.surfels.count;
+    this.surfelSlots = msg.surfels.count;
     this.changed = msg.surfels.end - msg.surfels.start;
     this.frameIndex = msg.index;
     this.frameCount = msg.frameCount;
@@ -112,12 +116,12 @@ export class Stats {
       ['failed (errors)', `${this.framesFailed}`],
       ['last verdict', this.lastVerdict ? this.lastVerdict + (this.lastLostReason ? ` (${this.lastLostReason})` : '') : '–'],
       ['surfels', this.surfels.toLocaleString('en-US')],
+      ['ATE rmse', this.ate === null ? '–' : `${(this.ate * 100).toFixed(this.ate < 0.01 ? 2 : 1)} cm (${this.atePairs} poses)`],
       ['fps', this.fps > 0 ? f1(this.fps) : '–'],
       ['ms / frame (wasm)', f1(this.stageMs.total)],
       ...STAGES.slice(0, -1).map((s) => [`\u2003${s}`, f1(this.stageMs[s])]),
       ['ms / frame (worker)', f1(this.wallMs)],
       ['changed surfels', this.changed === undefined ? '–' : this.changed.toLocaleString('en-US')],
-      ['ATE rmse', this.ate === null ? '–' : `${(this.ate * 100).toFixed(this.ate < 0.01 ? 2 : 1)} cm (${this.atePairs} poses)`],
     ];
     this.table.replaceChildren(
       ...rows.map(([k, v]) => {

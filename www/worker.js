@@ -8,11 +8,14 @@
 // 16-bit) goes to pushFrame, which decodes both images in wasm and names the
 // problem when there is one.
 //
-// Messages in:  {type: 'load', name, entries, autoplay}, 'play', 'pause',
-//               'step', 'reset', {type: 'config', config}, 'exportPly',
-//               'exportTrajectory'.
-// Messages out: 'ready', 'sequence', 'frame', 'frame-error', 'load-error',
-//               'state', 'ate', 'export', 'fatal'.
+// A failure of the module itself (a trap: a panic in Rust; or an object left
+// poisoned by one) stops playback and is reported as MODULE_FAILED; the next
+// action that needs the map starts a fresh instance of the module and a new
+// Slam. Until then the page serves the downloads from its own copy of what
+// it was sent (map-mirror.js).
+//
+// Messages: ToWorker and FromWorker in protocol.js.
+import { ToWorker, FromWorker, ToReader } from './protocol.js';
 import { SequenceSource } from './sequence.js';
 import { readAndDecodeColour, PREVIEW_WIDTH, PREVIEW_HEIGHT } from './colour-decode.js';
 
@@ -33,29 +36,90 @@ const PREFETCH_FRAMES = 3; // frames read and decoded ahead of the one in wasm
 const READ_BATCH = 16;
 let readAheadUntil = 0; // frames before this index have been asked for
 let framesOk = 0;
+let surfelCount = 0; // the map's size after the last frame (read without calling into the module)
+let failure = null; // {message}: the module failed; rebuilt at the next action that needs it
+let instance = 0; // module instances started (a failed one is replaced, not reused)
+let testBreak = false; // test hook: the next call into the module fails
+let testHang = false; // test hook: the next frame never returns
+const testHooks = new URL(self.location.href).searchParams.get('testHooks') === '1';
 let refreshCursor = 0; // start of the next rolling refresh window (surfel index)
 const REFRESH_SURFELS = 65536;
 
 const post = (msg, transfer = []) => self.postMessage(msg, transfer);
 const errorText = (e) => (e && e.message ? e.message : String(e));
 
+/**
+ * Whether an exception thrown by a call into the module means the module
+ * (not the input) failed: a trap (a Rust panic aborts as `unreachable`), or
+ * wasm-bindgen's guards on an object a trap left borrowed or freed.
+ */
+function isModuleFailure(e) {
+  if (typeof WebAssembly !== 'undefined' && e instanceof WebAssembly.RuntimeError) return true;
+  return /recursive use of an object|null pointer passed to rust|attempted to take ownership|unreachable|memory access out of bounds/i.test(
+    errorText(e),
+  );
+}
+
+/** The module failed: stop and say so (the page keeps what it was sent for the downloads). */
+function fail(e) {
+  playing = false;
+  failure = { message: errorText(e) };
+  // The poisoned objects are dropped, not freed (free() would throw too).
+  slam = null;
+  flow = null;
+  post({ type: FromWorker.MODULE_FAILED, message: failure.message, frames: framesOk });
+  reportState();
+}
+
+/** A download from the Slam; undefined when the module has failed (the page then uses its copy). */
+function exportFrom(fromSlam) {
+  if (failure) return undefined;
+  if (!slam) return fromSlam(null);
+  try {
+    return fromSlam(slam);
+  } catch (e) {
+    if (!isModuleFailure(e)) throw e;
+    fail(e);
+    return undefined;
+  }
+}
+
 // All work touching the module runs one job at a time, in message order.
 let chain = Promise.resolve();
 function serial(job) {
   const run = chain.then(job);
-  chain = run.catch((e) => post({ type: 'fatal', message: `internal error: ${errorText(e)}` }));
+  chain = run.catch((e) => {
+    if (isModuleFailure(e)) {
+      fail(e);
+      return;
+    }
+    post({ type: FromWorker.FATAL, message: `internal error: ${errorText(e)}` });
+    reportState();
+  });
   return chain;
 }
 
-async function initModule() {
-  const notes = [];
+/**
+ * Imports and instantiates the module. Each call makes a new instance (the
+ * URL differs, so the import is a new module record): a module that trapped
+ * may be left with its stack pointer or a lock wherever the trap hit.
+ */
+async function importModule(path) {
+  const url = new URL(path, import.meta.url);
+  if (instance > 0) url.searchParams.set('instance', String(instance));
+  const m = await import(url.href);
+  await m.default({ module_or_path: new URL(path.replace(/\.js$/, '_bg.wasm'), import.meta.url) });
+  return m;
+}
+
+async function startModule(notes = []) {
+  wasm = null;
   const forceSingle = new URL(self.location.href).searchParams.get('threads') === '0';
   if (forceSingle) {
     notes.push('threads=0 in the page URL: using the single-threaded SIMD module');
   } else if (self.crossOriginIsolated) {
     try {
-      const m = await import('./pkg/threads/surfel_slam.js');
-      await m.default();
+      const m = await importModule('./pkg/threads/surfel_slam.js');
       const want = Math.max(1, navigator.hardwareConcurrency || 1);
       await m.initThreadPool(want);
       wasm = m;
@@ -68,12 +132,32 @@ async function initModule() {
     notes.push('page is not cross-origin isolated: using the single-threaded SIMD module');
   }
   if (!wasm) {
-    const m = await import('./pkg/surfel_slam.js');
-    await m.default();
+    const m = await importModule('./pkg/surfel_slam.js');
     wasm = m;
     moduleKind = 'simd';
     threads = typeof m.threadCount === 'function' ? m.threadCount() : 1;
   }
+  instance++;
+  return notes;
+}
+
+/** After a failure: a fresh instance of the module (no Slam yet). */
+async function freshModule() {
+  if (!failure) return;
+  await startModule();
+  failure = null;
+  testBreak = false;
+}
+
+/** Before an action on the map: after a failure, a fresh module and a new Slam on the same config, at frame 0. */
+async function ensureSlam() {
+  await freshModule();
+  if (slam || !config) return;
+  createSlam(config);
+}
+
+async function initModule() {
+  const notes = await startModule();
   let presets = [];
   try {
     presets = toPlain(wasm.presets());
@@ -81,7 +165,7 @@ async function initModule() {
     notes.push(`presets(): ${errorText(e)}`);
   }
   startReader();
-  post({ type: 'ready', module: moduleKind, threads, presets, notes, frameReader: reader !== null });
+  post({ type: FromWorker.READY, module: moduleKind, threads, presets, notes, frameReader: reader !== null });
 }
 
 /** Deep copy into plain JS values (wasm-bindgen may hand out Maps or class objects). */
@@ -111,7 +195,8 @@ function flowTracks(colour, decoded) {
     const tracks = decoded ? flow.pushRgba(decoded.width, decoded.height, decoded.rgba) : flow.pushPng(colour);
     const [width, height] = flow.imageSize;
     return { tracks, width, height };
-  } catch {
+  } catch (e) {
+    if (isModuleFailure(e)) throw e;
     return null; // an overlay is not worth an error message
   }
 }
@@ -121,27 +206,37 @@ function createSlam(newConfig) {
   if (slam) slam.free();
   slam = fresh;
   config = newConfig;
+  restart();
+}
+
+/** Back to frame 0 with an empty map (the Slam already is). */
+function restart() {
   next = 0;
   framesOk = 0;
+  surfelCount = 0;
+  refreshCursor = 0;
   prefetch.clear();
   readAheadUntil = 0;
 }
 
+/** Never calls into the module: it must work when the module has failed. */
 function reportState(extra = {}) {
   post({
-    type: 'state',
+    type: FromWorker.STATE,
     playing,
     next,
     frameCount: seq ? seq.frames.length : 0,
     done: !!seq && next >= seq.frames.length,
-    surfels: slam ? slam.surfelCount : 0,
+    surfels: surfelCount,
+    failed: failure !== null,
     ...extra,
   });
 }
 
 // ---- loading a sequence -----------------------------------------------------
 
-async function load({ name, entries, autoplay }) {
+async function load({ name, entries, autoplay, options }) {
+  await freshModule();
   const source = new SequenceSource(entries);
   const paths = source.paths;
   let parsed;
@@ -152,7 +247,8 @@ async function load({ name, entries, autoplay }) {
     parsed = toPlain(wasm.parseSequence(paths, texts, name));
   } catch (e) {
     // Keep the current sequence and map: only a good sequence replaces them.
-    post({ type: 'load-error', name, message: `${name}: ${errorText(e)}` });
+    if (isModuleFailure(e)) throw e;
+    post({ type: FromWorker.LOAD_ERROR, name, message: `${name}: ${errorText(e)}` });
     reportState();
     return;
   }
@@ -161,10 +257,13 @@ async function load({ name, entries, autoplay }) {
   if (parsed.preset && typeof parsed.preset === 'object') Object.assign(newConfig, parsed.preset);
   delete newConfig.name;
   newConfig.preset = preset;
+  // The page's own choices (tracker, half resolution) carry over to a new sequence.
+  for (const key of ['tracker', 'halfResolution']) if (options?.[key] !== undefined) newConfig[key] = options[key];
   try {
     createSlam(newConfig);
   } catch (e) {
-    post({ type: 'load-error', name, message: `${name}: camera preset ${preset}: ${errorText(e)}` });
+    if (isModuleFailure(e)) throw e;
+    post({ type: FromWorker.LOAD_ERROR, name, message: `${name}: camera preset ${preset}: ${errorText(e)}` });
     return;
   }
   const groundTruth = (parsed.groundTruth || []).map((row) => Array.from(row));
@@ -178,7 +277,7 @@ async function load({ name, entries, autoplay }) {
   };
   readerSource(seq.id, entries);
   post({
-    type: 'sequence',
+    type: FromWorker.SEQUENCE,
     name,
     kind: parsed.kind,
     preset,
@@ -233,7 +332,7 @@ function startReader() {
 function readerSource(id, entries) {
   readerWaiting.clear();
   readAheadUntil = 0;
-  reader?.postMessage({ type: 'source', id, entries });
+  reader?.postMessage({ type: ToReader.SOURCE, id, entries });
 }
 
 /** Has the reader read the next batch of files once fewer than READ_BATCH frames are left read ahead of `index`. */
@@ -243,7 +342,7 @@ function readAhead(index) {
   const to = Math.min(seq.frames.length, index + 1 + 2 * READ_BATCH);
   if (from >= to) return;
   const paths = seq.frames.slice(from, to).flatMap((f) => [f.colour, f.depth]);
-  reader.postMessage({ type: 'readAhead', id: seq.id, paths });
+  reader.postMessage({ type: ToReader.READ_AHEAD, id: seq.id, paths });
   readAheadUntil = to;
 }
 
@@ -255,7 +354,7 @@ function loadFrame(index) {
     const source = seq.source;
     promise = new Promise((resolve, reject) => readerWaiting.set(key, { resolve, reject, source, frame }));
     const { colour, depth } = frame;
-    reader.postMessage({ type: 'read', id: seq.id, index, colour, depth, decode: browserColour });
+    reader.postMessage({ type: ToReader.READ, id: seq.id, index, colour, depth, decode: browserColour });
   } else {
     promise = readAndDecodeColour(seq.source, frame, browserColour);
   }
@@ -310,7 +409,7 @@ async function processNext() {
   try {
     ({ colourBuf, depthBuf, decoded } = await reading);
   } catch (e) {
-    post({ type: 'frame-error', index, message: errorText(e), frameCount: seq.frames.length });
+    post({ type: FromWorker.FRAME_ERROR, index, message: errorText(e), frameCount: seq.frames.length });
     return;
   }
   const tRead = performance.now();
@@ -319,14 +418,26 @@ async function processNext() {
   const colourDecoder = decoded ? 'browser' : 'wasm';
   let r;
   try {
+    if (testBreak) {
+      // Test hook: what a panic leaves behind (the object freed under wasm-bindgen's feet).
+      testBreak = false;
+      slam.free();
+    }
+    if (testHang) {
+      // Test hook: what a panic on one of the module's threads leaves behind
+      // (this thread waits for it for ever).
+      if (typeof SharedArrayBuffer === 'function') Atomics.wait(new Int32Array(new SharedArrayBuffer(4)), 0, 0);
+      for (;;);
+    }
     const report = decoded
       ? slam.pushRgbaDepthPng(decoded.width, decoded.height, decoded.rgba, depth, frame.timestamp)
       : slam.pushFrame(colour, depth, frame.timestamp);
     r = toPlain(report);
   } catch (e) {
+    if (isModuleFailure(e)) throw e;
     post(
       {
-        type: 'frame-error',
+        type: FromWorker.FRAME_ERROR,
         index,
         message: describeFrameError(frame, errorText(e)),
         frameCount: seq.frames.length,
@@ -346,6 +457,7 @@ async function processNext() {
   // Copy out only the surfels that changed (the views into wasm memory are
   // invalidated by the next call into the module).
   const count = slam.surfelCount;
+  surfelCount = count;
   let [start, end] = Array.from(slam.takeChangedRange());
   start = Math.max(0, Math.min(start, count));
   end = Math.max(start, Math.min(end, count));
@@ -383,14 +495,15 @@ async function processNext() {
   if (seq.gtTum && (framesOk % every === 0 || last)) {
     try {
       ate = toPlain(wasm.ateTum(slam.trajectoryTum(), seq.gtTum));
-    } catch {
+    } catch (e) {
+      if (isModuleFailure(e)) throw e;
       ate = null; // too few associated poses yet
     }
   }
   const tAte = performance.now();
   post(
     {
-      type: 'frame',
+      type: FromWorker.FRAME,
       index,
       frameCount: seq.frames.length,
       timestamp: frame.timestamp,
@@ -459,32 +572,46 @@ async function pump() {
   lastFrameEnd = null;
   try {
     while (playing) {
-      if (!seq || next >= seq.frames.length) {
-        playing = false;
-        break;
-      }
-      await serial(processNext);
+      // Checked inside the serial job: a reset or replay queued before it has run by then.
+      const more = await serial(async () => {
+        if (!playing || failure) return false;
+        if (!seq || !slam || next >= seq.frames.length) {
+          playing = false;
+          return false;
+        }
+        await processNext();
+        return true;
+      });
+      if (!more) break;
       await tick(); // let pause / step / reset messages in
     }
   } finally {
     pumping = false;
-    reportState();
+    serial(() => reportState());
   }
 }
 
-function resetMap() {
-  if (!slam) return;
-  slam.reset();
-  next = 0;
-  framesOk = 0;
-  prefetch.clear();
-  readAheadUntil = 0;
+/** Empty map, frame 0 (a new Slam after a failure). */
+async function resetMap() {
+  if (failure || !slam) {
+    await ensureSlam();
+  } else {
+    slam.reset();
+    restart();
+  }
+  post({ type: FromWorker.RESET });
+}
+
+function play() {
+  playing = true;
+  serial(() => reportState());
+  pump();
 }
 
 // ---- messages -----------------------------------------------------------------
 
 const ready = initModule().catch((e) => {
-  post({ type: 'fatal', message: `cannot load the wasm module: ${errorText(e)}` });
+  post({ type: FromWorker.FATAL, message: `cannot load the wasm module: ${errorText(e)}` });
   throw e;
 });
 
@@ -496,77 +623,92 @@ self.onmessage = async (event) => {
     return;
   }
   switch (msg.type) {
-    case 'load':
+    case ToWorker.LOAD:
       playing = false;
       serial(() => load(msg));
       break;
-    case 'play':
-      if (seq && next >= seq.frames.length) {
+    case ToWorker.PLAY:
+      serial(async () => {
+        if (failure || !slam) await resetMap();
         // Play after the end starts again from an empty map.
-        serial(() => {
-          resetMap();
-          post({ type: 'reset' });
-        });
-      }
-      playing = true;
-      serial(() => reportState());
-      pump();
+        else if (seq && next >= seq.frames.length) await resetMap();
+      });
+      play();
       break;
-    case 'pause':
+    case ToWorker.REPLAY:
+      playing = false;
+      serial(resetMap);
+      play();
+      break;
+    case ToWorker.PAUSE:
       playing = false;
       serial(() => reportState());
       break;
-    case 'step':
+    case ToWorker.STEP:
       playing = false;
       serial(async () => {
+        if (failure) await resetMap();
         await processNext();
         reportState();
       });
       break;
-    case 'reset':
+    case ToWorker.RESET:
       playing = false;
-      serial(() => {
-        resetMap();
-        post({ type: 'reset' });
+      serial(async () => {
+        await resetMap();
         reportState();
       });
       break;
-    case 'config':
-      serial(() => {
-        const wasPlaying = playing;
-        playing = false;
+    case ToWorker.CONFIG: {
+      const wasPlaying = playing;
+      serial(async () => {
+        await freshModule();
         try {
           createSlam(msg.config);
         } catch (e) {
-          post({ type: 'config-error', message: `camera settings rejected: ${errorText(e)}` });
+          if (isModuleFailure(e)) throw e;
+          playing = wasPlaying; // the old Slam goes on as it was
+          post({ type: FromWorker.CONFIG_ERROR, message: `camera settings rejected: ${errorText(e)}` });
           reportState();
           return;
         }
-        post({ type: 'reset', config: msg.config });
-        playing = wasPlaying;
-        reportState();
-        if (playing) pump();
+        post({ type: FromWorker.RESET, config: msg.config });
       });
+      // New settings restart the sequence and play it (the frame loop's job
+      // runs after the one above).
+      if (seq) play();
       break;
-    case 'flow':
+    }
+    case ToWorker.FLOW:
       flowEnabled = Boolean(msg.enabled);
       if (!flowEnabled && flow) {
-        flow.free();
-        flow = null;
+        serial(() => {
+          flow?.free();
+          flow = null;
+        });
       }
       break;
-    case 'exportPly':
+    case ToWorker.EXPORT_PLY:
       serial(() => {
-        const bytes = slam ? slam.exportPly().slice() : new Uint8Array();
-        post({ type: 'export', what: 'ply', bytes, name: seq?.name }, [bytes.buffer]);
+        const bytes = exportFrom((s) => (s ? s.exportPly().slice() : new Uint8Array()));
+        if (bytes) post({ type: FromWorker.EXPORT, what: 'ply', bytes, name: seq?.name }, [bytes.buffer]);
+        else post({ type: FromWorker.EXPORT, what: 'ply', unavailable: true, name: seq?.name });
       });
       break;
-    case 'exportTrajectory':
+    case ToWorker.EXPORT_TRAJECTORY:
       serial(() => {
-        post({ type: 'export', what: 'trajectory', text: slam ? slam.trajectoryTum() : '', name: seq?.name });
+        const text = exportFrom((s) => (s ? s.trajectoryTum() : ''));
+        if (text !== undefined) post({ type: FromWorker.EXPORT, what: 'trajectory', text, name: seq?.name });
+        else post({ type: FromWorker.EXPORT, what: 'trajectory', unavailable: true, name: seq?.name });
       });
+      break;
+    case ToWorker.TEST_BREAK:
+    case ToWorker.TEST_HANG:
+      if (!testHooks) post({ type: FromWorker.FATAL, message: 'test hooks are off (testHooks=1 in the worker URL)' });
+      else if (msg.type === ToWorker.TEST_BREAK) testBreak = true;
+      else testHang = true;
       break;
     default:
-      post({ type: 'fatal', message: `unknown message ${msg.type}` });
+      post({ type: FromWorker.FATAL, message: `unknown message ${msg.type}` });
   }
 };

@@ -18,6 +18,8 @@ import {
   makeTumClip,
   saveScreenshot,
   skipUnlessReady,
+  canvasPng,
+  decodePng,
 } from './helpers.mjs';
 
 const ICL = path.join(SHARED_DATA, 'icl_office_kt0');
@@ -45,6 +47,26 @@ function makeIclClip(n) {
 
 const chooseFolder = (page, dir) => page.locator('#folder-input').setInputFiles(dir);
 
+/** Mean row of the near-white pixels and of all non-background pixels of a decoded image. */
+function brightAboveRest({ width, height, channels, data }) {
+  const bg = [data[0], data[1], data[2]];
+  let bright = 0, brightCount = 0, all = 0, allCount = 0;
+  for (let y = 0; y < height; y++) {
+    for (let x = 0; x < width; x++) {
+      const p = (y * width + x) * channels;
+      const [r, g, b] = [data[p], data[p + 1], data[p + 2]];
+      if (Math.abs(r - bg[0]) + Math.abs(g - bg[1]) + Math.abs(b - bg[2]) < 12) continue;
+      all += y;
+      allCount++;
+      if (0.299 * r + 0.587 * g + 0.114 * b > 225) {
+        bright += y;
+        brightCount++;
+      }
+    }
+  }
+  return { bright: bright / Math.max(1, brightCount), all: all / Math.max(1, allCount), brightCount };
+}
+
 test('a folder uploaded through the file input is tracked and fused', { timeout: 300_000 }, async (t) => {
   if (skipUnlessReady(t)) return;
   if (!fs.existsSync(ICL)) return t.skip(`${ICL} is absent (needs ../shared/data beside the checkout)`);
@@ -62,8 +84,15 @@ test('a folder uploaded through the file input is tracked and fused', { timeout:
       `ICL-NUIM upload: ${status.framesProcessed} frames, ${status.surfels} surfels, lost ${status.framesLost}, ` +
         `fps ${status.fpsAverage}, ATE ${status.ate === null ? '-' : (status.ate * 100).toFixed(1) + ' cm'}`,
     );
-    await page.waitForTimeout(300);
+    // Upright: seen from behind the first camera, the ceiling's lights (the
+    // brightest surfels) are above the rest of the map, as in the colour image.
+    await page.locator('#view-button').click();
+    await page.waitForTimeout(800);
     saveScreenshot('upload-icl-page.png', await page.screenshot());
+    const upright = brightAboveRest(decodePng(await canvasPng(page)));
+    t.diagnostic(`ICL-NUIM view: bright pixels at mean y ${upright.bright.toFixed(0)}, the map at ${upright.all.toFixed(0)} (${upright.brightCount} bright)`);
+    assert.equal(status.displayFlipY, true, 'negative fy: the map is shown mirrored in y');
+    assert.ok(upright.brightCount > 200 && upright.bright < upright.all - 10, `ceiling lights above the map's middle: ${JSON.stringify(upright)}`);
     assert.equal(status.error, null, `the page reported an error: ${status.error}`);
     assert.equal(status.sequenceKind, 'icl-nuim');
     assert.equal(status.frameCount, ICL_FRAMES);

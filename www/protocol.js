@@ -1,0 +1,68 @@
+// Every message name exchanged by the page (app.js), the SLAM worker
+// (worker.js) and the frame reader (frame-reader.js), in one place: a name
+// used on one side and not the other is then a reference error, not a message
+// silently dropped. Fields are listed beside each name.
+
+/** Page -> SLAM worker (`{type, ...fields}`). */
+export const ToWorker = Object.freeze({
+  /** {name, entries: [[path, File|url]], autoplay, options: {tracker, halfResolution}}: open a sequence. */
+  LOAD: 'load',
+  /** Play from the next frame (from frame 0 when the sequence is done). */
+  PLAY: 'play',
+  /** Stop after the frame under way. */
+  PAUSE: 'pause',
+  /** Process one frame, then stop. */
+  STEP: 'step',
+  /** Empty map, back to frame 0, stopped. */
+  RESET: 'reset',
+  /** Empty map, back to frame 0, playing. */
+  REPLAY: 'replay',
+  /** {config} (a Slam config, docs/js-api.md): new Slam, back to frame 0, playing. */
+  CONFIG: 'config',
+  /** {enabled}: compute Lucas-Kanade tracks for the colour view's overlay. */
+  FLOW: 'flow',
+  /** Map as binary PLY; answered by EXPORT. */
+  EXPORT_PLY: 'exportPly',
+  /** Trajectory as TUM text; answered by EXPORT. */
+  EXPORT_TRAJECTORY: 'exportTrajectory',
+  /** Test hook, honoured only when the worker's URL has testHooks=1: the module fails at the next call. */
+  TEST_BREAK: 'test-break',
+  /** Test hook (testHooks=1): the next frame never returns, as when one of the module's threads panics. */
+  TEST_HANG: 'test-hang',
+});
+
+/** SLAM worker -> page (`{type, ...fields}`). */
+export const FromWorker = Object.freeze({
+  /** {module: 'threads'|'simd', threads, presets, notes, frameReader}: the module is loaded. */
+  READY: 'ready',
+  /** {name, kind, preset, config, frameCount, groundTruth, fileCount}: a sequence was opened. */
+  SEQUENCE: 'sequence',
+  /** {index, frameCount, timestamp, result, surfels, refresh, ate, timing, input, flow, done}: one frame processed. */
+  FRAME: 'frame',
+  /** {index, message, frameCount, input?}: one frame skipped (unreadable or refused). */
+  FRAME_ERROR: 'frame-error',
+  /** {name, message}: a folder could not be opened (the current sequence stays). */
+  LOAD_ERROR: 'load-error',
+  /** {message}: camera settings refused (the current Slam stays). */
+  CONFIG_ERROR: 'config-error',
+  /** {playing, next, frameCount, done, surfels, failed}: playback state. */
+  STATE: 'state',
+  /** {config?}: the map was emptied (reset, replay, new config, rebuilt after a failure). */
+  RESET: 'reset',
+  /** {what: 'ply'|'trajectory', bytes|text, name} or {what, unavailable: true} (the module has failed: the page uses its own copy). */
+  EXPORT: 'export',
+  /** {message, frames}: the wasm module failed; playback stopped, it is rebuilt at the next action. */
+  MODULE_FAILED: 'module-failed',
+  /** {message}: the worker itself cannot go on (module not loadable, internal error). */
+  FATAL: 'fatal',
+});
+
+/** SLAM worker -> frame reader (`{type, ...fields}`); the reader answers `{id, index, colourBuf, depthBuf, decoded}` or `{id, index, error}`. */
+export const ToReader = Object.freeze({
+  /** {id, entries}: the current sequence's files (as for SequenceSource). */
+  SOURCE: 'source',
+  /** {id, index, colour, depth, decode}: read (and decode the colour of) one frame. */
+  READ: 'read',
+  /** {id, paths}: read these files now, keep the bytes for a later READ. */
+  READ_AHEAD: 'readAhead',
+});
