@@ -33,7 +33,7 @@ pub struct EvalArgs {
     associate: AssociateBy,
     /// Largest timestamp difference of a pair, in the files' unit (seconds
     /// for TUM); `--associate time` only.
-    #[arg(long, default_value_t = MAX_DT, value_parser = non_negative)]
+    #[arg(long, default_value_t = MAX_DT, allow_negative_numbers = true, value_parser = non_negative)]
     max_dt: f64,
     /// Write one row per matched pose here: timestamps, position error (m),
     /// rotation error (deg), aligned estimate and ground-truth positions (m).

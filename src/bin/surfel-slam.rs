@@ -58,13 +58,18 @@ struct RunArgs {
     #[arg(long)]
     ply: Option<PathBuf>,
     /// First frame to use (0-based).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     first: usize,
     /// Number of frames to use [default: all].
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
-    count: Option<u64>,
+    #[arg(long, allow_negative_numbers = true, value_parser = positive)]
+    count: Option<usize>,
     /// Keep every Nth frame only (simulates dropped frames or a slower camera).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(
+        long,
+        default_value_t = 1,
+        allow_negative_numbers = true,
+        value_parser = clap::value_parser!(u32).range(1..)
+    )]
     stride: u32,
     #[command(flatten)]
     camera: CameraOverrides,
@@ -85,10 +90,11 @@ pub(crate) struct TrackingArgs {
     /// are evicted and further new surfels skipped (merges continue).
     #[arg(
         long,
-        default_value_t = FusionConfig::default().max_surfels as u64,
-        value_parser = clap::value_parser!(u64).range(1..)
+        default_value_t = FusionConfig::default().max_surfels,
+        allow_negative_numbers = true,
+        value_parser = positive
     )]
-    max_surfels: u64,
+    max_surfels: usize,
     /// Tracker: icp (geometry), rgb (photometric) or joint (both).
     #[arg(
         long,
@@ -109,7 +115,7 @@ pub(crate) struct TrackingArgs {
 impl TrackingArgs {
     pub(crate) fn apply(&self, config: &mut SlamConfig) {
         config.half_resolution = self.half;
-        config.fusion.max_surfels = usize::try_from(self.max_surfels).unwrap_or(usize::MAX);
+        config.fusion.max_surfels = self.max_surfels;
         config.tracker.mode = self.tracker;
         config.tracker.icp_weight = self.icp_weight;
     }
@@ -134,6 +140,15 @@ fn finite(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v.is_finite() => Ok(v),
         Ok(v) => Err(format!("{v} is not a finite number")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// A whole number >= 1.
+pub(crate) fn positive(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("must be at least 1".to_owned()),
+        Ok(v) => Ok(v),
         Err(e) => Err(e.to_string()),
     }
 }
@@ -286,10 +301,7 @@ fn run(args: &RunArgs) -> Result<u8> {
         .iter()
         .skip(args.first)
         .step_by(args.stride as usize)
-        .take(
-            args.count
-                .map_or(usize::MAX, |n| usize::try_from(n).unwrap_or(usize::MAX)),
-        )
+        .take(args.count.unwrap_or(usize::MAX))
         .collect();
     if frames.is_empty() {
         bail!(
