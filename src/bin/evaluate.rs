@@ -63,13 +63,17 @@ impl AssociateBy {
     }
 }
 
-/// `metres` in centimetres with at least three significant digits (a
+/// `v` with at least three decimals and three significant digits (a
 /// synthetic sequence's ATE is a hundredth of a millimetre).
-pub fn cm(metres: f64) -> String {
-    let v = metres * 100.0;
+fn digits(v: f64) -> String {
     let magnitude = if v > 0.0 { v.log10().floor() } else { 0.0 };
     let decimals = (2.0 - magnitude).clamp(3.0, 9.0) as usize;
-    format!("{v:.decimals$} cm")
+    format!("{v:.decimals$}")
+}
+
+/// `metres` in centimetres, as [`digits`].
+pub fn cm(metres: f64) -> String {
+    format!("{} cm", digits(metres * 100.0))
 }
 
 fn read(path: &Path) -> Result<Vec<(f64, glam::DAffine3)>> {
@@ -122,9 +126,9 @@ pub fn evaluate(args: &EvalArgs) -> Result<()> {
         args.associate.describe(args.max_dt),
     );
     println!(
-        "RPE {}, {:.4} deg per frame ({} steps)",
+        "RPE {}, {} deg per frame ({} steps)",
         cm(rpe.translation_rmse_m),
-        rpe.rotation_rmse_rad.to_degrees(),
+        digits(rpe.rotation_rmse_rad.to_degrees()),
         rpe.pairs
     );
     if let Some(path) = &args.csv {

@@ -225,7 +225,8 @@ where
         })
         .collect();
     let (x0, x1) = padded(series.iter().map(|p| p.0));
-    let y1 = padded(series.iter().map(|p| p.1)).1.max(1e-6);
+    // Headroom above the curve for the legend.
+    let y1 = 1.25 * padded(series.iter().map(|p| p.1)).1.max(1e-6);
     let x_desc = match axis {
         TimeAxis::Seconds => "time since the first pose (s)",
         TimeAxis::Frame => "frame",
