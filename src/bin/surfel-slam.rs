@@ -1,9 +1,11 @@
 //! `surfel-slam`: run dense RGB-D SLAM over a dataset folder, or evaluate a trajectory.
 //!
 //! Exit codes: 0 success; 1 the run could not start or finish (unreadable
-//! folder, unknown layout, bad camera settings, ...; the message names the
-//! file or setting); 2 bad command line; 3 the run finished but some frames
-//! were skipped as unreadable (each was named on stderr).
+//! folder, unknown layout, camera settings that do not fit the images, ...;
+//! the message names the file or setting); 2 bad command line (unknown
+//! option, tracker or preset, a number that is not finite or out of range;
+//! clap names the option); 3 the run finished but some frames were skipped
+//! as unreadable (each was named on stderr).
 
 mod bench;
 mod evaluate;
