@@ -34,6 +34,65 @@ pub enum EvalError {
     /// The alignment's singular value decomposition failed.
     #[error("the alignment is degenerate (SVD did not converge)")]
     Degenerate,
+    /// Association by frame id needs whole-number first columns.
+    #[error("the {which} trajectory's first column holds {value}, not a whole frame number")]
+    NotFrameIds {
+        /// "estimate" or "ground truth".
+        which: &'static str,
+        /// The first value that is not a whole number.
+        value: f64,
+    },
+}
+
+/// How estimate poses are paired with ground-truth poses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Association {
+    /// Nearest timestamp within `max_dt` (same unit as the files, seconds
+    /// for TUM), each pose used once, greedy by |dt| as TUM's
+    /// `associate.py`. Frame-number stamps (ICL-NUIM) match exactly.
+    Timestamp {
+        /// Largest accepted time difference.
+        max_dt: f64,
+    },
+    /// Equal frame ids: the first column read as a whole frame number
+    /// (ICL-NUIM's `N tx ty ...`); each id used once.
+    FrameId,
+    /// Row order: the i-th estimate pose with the i-th ground-truth pose,
+    /// whatever their first columns say.
+    Order,
+}
+
+/// Error of one matched pose after the ATE alignment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseError {
+    /// Index of the pose in the estimate.
+    pub estimate_index: usize,
+    /// Index of the matched pose in the ground truth.
+    pub ground_truth_index: usize,
+    /// The estimate pose's timestamp (file units: seconds, or frame number).
+    pub timestamp: f64,
+    /// The matched ground-truth pose's timestamp (file units).
+    pub ground_truth_timestamp: f64,
+    /// Camera position of the estimate, mapped into the ground truth's
+    /// world by the ATE alignment, metres.
+    pub aligned_position: DVec3,
+    /// Camera position of the ground truth, metres (its own world).
+    pub ground_truth_position: DVec3,
+    /// |aligned_position - ground_truth_position|, metres.
+    pub position_error_m: f64,
+    /// Angle between the aligned estimate's and the ground truth's camera
+    /// orientations, radians in [0, pi].
+    pub rotation_error_rad: f64,
+}
+
+/// ATE statistics and the per-pose errors behind them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AteReport {
+    /// The statistics, as [`ate`] returns them.
+    pub summary: AteResult,
+    /// One entry per matched pose, in the association's order (estimate
+    /// time order, or row order for [`Association::Order`]).
+    pub errors: Vec<PoseError>,
 }
 
 /// Absolute trajectory error statistics, metres, after rigid alignment.
@@ -73,20 +132,70 @@ fn check_finite(poses: &[(f64, DAffine3)], which: &'static str) -> Result<(), Ev
     }
 }
 
-/// Matches each estimate pose to the ground-truth pose nearest in time
-/// (|dt| <= `max_dt`, each used once, greedy by |dt| as TUM's
-/// `associate.py`); returns `(estimate, ground truth)` in estimate time order.
+/// Largest magnitude at which every f64 whole number is exact.
+const MAX_EXACT_ID: f64 = 9_007_199_254_740_992.0;
+
+/// The first column of `poses` as whole frame numbers.
+fn frame_ids(poses: &[(f64, DAffine3)], which: &'static str) -> Result<Vec<i64>, EvalError> {
+    poses
+        .iter()
+        .map(|&(t, _)| {
+            if t.fract() == 0.0 && t.abs() <= MAX_EXACT_ID {
+                // Exact: t is a whole number within i64's range.
+                Ok(t as i64)
+            } else {
+                Err(EvalError::NotFrameIds { which, value: t })
+            }
+        })
+        .collect()
+}
+
+/// Pairs `(index in estimate, index in ground truth)` under `association`:
+/// estimate time order for timestamps and frame ids, row order for
+/// [`Association::Order`]. Each pose is used at most once.
+pub fn associate_indices(
+    estimate: &[(f64, DAffine3)],
+    ground_truth: &[(f64, DAffine3)],
+    association: Association,
+) -> Result<Vec<(usize, usize)>, EvalError> {
+    match association {
+        Association::Timestamp { max_dt } => {
+            let te: Vec<f64> = estimate.iter().map(|p| p.0).collect();
+            let tg: Vec<f64> = ground_truth.iter().map(|p| p.0).collect();
+            Ok(associate_timestamps(&te, &tg, max_dt))
+        }
+        Association::FrameId => {
+            let ie = frame_ids(estimate, "estimate")?;
+            let ig = frame_ids(ground_truth, "ground truth")?;
+            let mut by_id = std::collections::HashMap::new();
+            for (j, id) in ig.iter().enumerate() {
+                by_id.entry(*id).or_insert(j);
+            }
+            let mut pairs: Vec<(usize, usize)> = ie
+                .iter()
+                .enumerate()
+                // remove(): a repeated estimate id does not reuse its match.
+                .filter_map(|(i, id)| by_id.remove(id).map(|j| (i, j)))
+                .collect();
+            pairs.sort_by_key(|&(i, _)| (ie[i], i));
+            Ok(pairs)
+        }
+        Association::Order => Ok((0..estimate.len().min(ground_truth.len()))
+            .map(|i| (i, i))
+            .collect()),
+    }
+}
+
+/// The matched `(estimate, ground truth)` poses, in [`associate_indices`]'s order.
 fn associate_poses(
     estimate: &[(f64, DAffine3)],
     ground_truth: &[(f64, DAffine3)],
-    max_dt: f64,
-) -> Vec<(DAffine3, DAffine3)> {
-    let te: Vec<f64> = estimate.iter().map(|p| p.0).collect();
-    let tg: Vec<f64> = ground_truth.iter().map(|p| p.0).collect();
-    associate_timestamps(&te, &tg, max_dt)
+    association: Association,
+) -> Result<Vec<(DAffine3, DAffine3)>, EvalError> {
+    Ok(associate_indices(estimate, ground_truth, association)?
         .into_iter()
         .map(|(i, j)| (estimate[i].1, ground_truth[j].1))
-        .collect()
+        .collect())
 }
 
 /// Matches estimate and ground-truth poses by nearest timestamp within
@@ -98,9 +207,11 @@ pub fn associate(
     ground_truth: &[(f64, DAffine3)],
     max_dt: f64,
 ) -> Vec<(DVec3, DVec3)> {
-    associate_poses(estimate, ground_truth, max_dt)
+    let te: Vec<f64> = estimate.iter().map(|p| p.0).collect();
+    let tg: Vec<f64> = ground_truth.iter().map(|p| p.0).collect();
+    associate_timestamps(&te, &tg, max_dt)
         .into_iter()
-        .map(|(e, g)| (e.translation, g.translation))
+        .map(|(i, j)| (estimate[i].1.translation, ground_truth[j].1.translation))
         .collect()
 }
 
@@ -154,16 +265,47 @@ pub fn ate(
     ground_truth: &[(f64, DAffine3)],
     max_dt: f64,
 ) -> Result<AteResult, EvalError> {
+    ate_report(estimate, ground_truth, Association::Timestamp { max_dt }).map(|r| r.summary)
+}
+
+/// [`ate`] under any [`Association`], with the error of every matched pose
+/// (metres, radians) after the alignment.
+pub fn ate_report(
+    estimate: &[(f64, DAffine3)],
+    ground_truth: &[(f64, DAffine3)],
+    association: Association,
+) -> Result<AteReport, EvalError> {
     check_finite(estimate, "estimate")?;
     check_finite(ground_truth, "ground truth")?;
-    let pairs = associate(estimate, ground_truth, max_dt);
-    if pairs.len() < 3 {
+    let indices = associate_indices(estimate, ground_truth, association)?;
+    if indices.len() < 3 {
         return Err(EvalError::TooFewPairs {
-            found: pairs.len(),
+            found: indices.len(),
             needed: 3,
         });
     }
+    let pairs: Vec<(DVec3, DVec3)> = indices
+        .iter()
+        .map(|&(i, j)| (estimate[i].1.translation, ground_truth[j].1.translation))
+        .collect();
     let alignment = align_rigid(&pairs)?;
+    let per_pose: Vec<PoseError> = indices
+        .iter()
+        .map(|&(i, j)| {
+            let (e, g) = (estimate[i], ground_truth[j]);
+            let aligned = alignment * e.1;
+            PoseError {
+                estimate_index: i,
+                ground_truth_index: j,
+                timestamp: e.0,
+                ground_truth_timestamp: g.0,
+                aligned_position: aligned.translation,
+                ground_truth_position: g.1.translation,
+                position_error_m: (aligned.translation - g.1.translation).length(),
+                rotation_error_rad: rotation_angle(g.1.matrix3.transpose() * aligned.matrix3),
+            }
+        })
+        .collect();
     let mut errors: Vec<f64> = pairs
         .iter()
         .map(|(e, g)| (alignment.transform_point3(*e) - *g).length())
@@ -175,13 +317,16 @@ pub fn ate(
     } else {
         0.5 * (errors[n / 2 - 1] + errors[n / 2])
     };
-    Ok(AteResult {
-        rmse_m: (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
-        mean_m: errors.iter().sum::<f64>() / n as f64,
-        median_m,
-        max_m: errors[n - 1],
-        pairs: n,
-        ground_truth_from_estimate: alignment,
+    Ok(AteReport {
+        summary: AteResult {
+            rmse_m: (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
+            mean_m: errors.iter().sum::<f64>() / n as f64,
+            median_m,
+            max_m: errors[n - 1],
+            pairs: n,
+            ground_truth_from_estimate: alignment,
+        },
+        errors: per_pose,
     })
 }
 
@@ -200,9 +345,19 @@ pub fn rpe(
     ground_truth: &[(f64, DAffine3)],
     max_dt: f64,
 ) -> Result<RpeResult, EvalError> {
+    rpe_with(estimate, ground_truth, Association::Timestamp { max_dt })
+}
+
+/// [`rpe`] under any [`Association`]: consecutive steps of the matched
+/// sequence, in the association's order.
+pub fn rpe_with(
+    estimate: &[(f64, DAffine3)],
+    ground_truth: &[(f64, DAffine3)],
+    association: Association,
+) -> Result<RpeResult, EvalError> {
     check_finite(estimate, "estimate")?;
     check_finite(ground_truth, "ground truth")?;
-    let pairs = associate_poses(estimate, ground_truth, max_dt);
+    let pairs = associate_poses(estimate, ground_truth, association)?;
     if pairs.len() < 2 {
         return Err(EvalError::TooFewPairs {
             found: pairs.len(),
@@ -340,5 +495,66 @@ mod tests {
             ate(&bad, &gt, 0.02),
             Err(EvalError::NonFinite { which: "estimate" })
         );
+    }
+
+    #[test]
+    fn frame_ids_and_row_order_pair_differently() {
+        // ICL-NUIM style: ground truth for frames 2..=30, estimate for 1..=30.
+        let poses = trajectory(31);
+        let gt: Vec<_> = (2..=30).map(|k| (k as f64, poses[k].1)).collect();
+        let est: Vec<_> = (1..=30).map(|k| (k as f64, poses[k].1)).collect();
+        let by_id = ate_report(&est, &gt, Association::FrameId).expect("ate");
+        assert_eq!(by_id.errors.len(), 29);
+        assert!(by_id.summary.rmse_m < 1e-9, "{:?}", by_id.summary);
+        let first = by_id.errors[0];
+        assert_eq!((first.estimate_index, first.ground_truth_index), (1, 0));
+        assert_eq!((first.timestamp, first.ground_truth_timestamp), (2.0, 2.0));
+        assert!(first.rotation_error_rad < 1e-6);
+        // Row order pairs frame k with frame k+1: a real error.
+        let by_row = ate_report(&est, &gt, Association::Order).expect("ate");
+        assert_eq!(by_row.errors.len(), 29);
+        assert_eq!(by_row.errors[0].timestamp, 1.0);
+        assert!(by_row.summary.rmse_m > 1e-3, "{:?}", by_row.summary);
+        // Time association equals id association on whole-number stamps.
+        let by_time = ate(&est, &gt, 0.02).expect("ate");
+        assert_eq!(by_time, by_id.summary);
+        let tum = trajectory(5);
+        assert_eq!(
+            ate_report(&tum, &tum, Association::FrameId),
+            Err(EvalError::NotFrameIds {
+                which: "estimate",
+                value: 1.0 / 30.0
+            })
+        );
+    }
+
+    #[test]
+    fn per_pose_errors_match_known_offsets() {
+        // As in ate_reports_a_known_offset, each position twice, shifted by
+        // +d and -d along z: every per-pose error is d, in a moved world.
+        let d = 0.03;
+        let world = DAffine3::from_rotation_translation(
+            DQuat::from_rotation_y(1.1),
+            DVec3::new(0.2, 0.0, -4.0),
+        );
+        let gt = trajectory(20);
+        let (mut est, mut gt2) = (Vec::new(), Vec::new());
+        for (k, (_, p)) in gt.iter().enumerate() {
+            for (j, sign) in [1.0, -1.0].into_iter().enumerate() {
+                let t = (2 * k + j) as f64 * 0.1;
+                gt2.push((t, *p));
+                let mut e = *p;
+                e.translation.z += sign * d;
+                est.push((t + 0.01, world * e));
+            }
+        }
+        let r = ate_report(&est, &gt2, Association::Timestamp { max_dt: 0.02 }).expect("ate");
+        assert_eq!(r.errors.len(), 40);
+        for (k, e) in r.errors.iter().enumerate() {
+            assert_eq!((e.estimate_index, e.ground_truth_index), (k, k));
+            assert!((e.position_error_m - d).abs() < 1e-9, "{e:?}");
+            assert!(e.rotation_error_rad < 1e-6, "{e:?}");
+            assert!(e.ground_truth_position == gt2[k].1.translation);
+        }
     }
 }

@@ -15,8 +15,9 @@ pub struct BenchArgs {
     /// Dataset folder (layout detected automatically).
     dataset: PathBuf,
     /// Frames to process; past the sequence's end it is played backwards,
-    /// then forwards again, so the camera motion stays continuous.
-    #[arg(long)]
+    /// then forwards again, so the camera motion stays continuous
+    /// [default: the sequence's length].
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::positive)]
     frames: Option<usize>,
     #[command(flatten)]
     camera: CameraOverrides,

@@ -1,20 +1,26 @@
 //! `surfel-slam`: run dense RGB-D SLAM over a dataset folder, or evaluate a trajectory.
 //!
 //! Exit codes: 0 success; 1 the run could not start or finish (unreadable
-//! folder, unknown layout, bad camera settings, ...; the message names the
-//! file or setting); 2 bad command line; 3 the run finished but some frames
-//! were skipped as unreadable (each was named on stderr).
+//! folder, unknown layout, camera settings that do not fit the images, ...;
+//! the message names the file or setting); 2 bad command line (unknown
+//! option, tracker or preset, a number that is not finite or out of range;
+//! clap names the option); 3 the run finished but some frames were skipped
+//! as unreadable (each was named on stderr).
 
 mod bench;
+mod evaluate;
+mod plot;
 
 use anyhow::{bail, Context, Result};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use surfel_slam::dataset::{ply::write_ply, read_frame, trajectory, FrameEntry, Sequence};
-use surfel_slam::eval::{ate, rpe};
-use surfel_slam::track::TrackerMode;
+use surfel_slam::eval::ate;
+use surfel_slam::fusion::FusionConfig;
+use surfel_slam::track::{TrackerConfig, TrackerMode};
 use surfel_slam::{CameraPreset, Pipeline, SlamConfig, Verdict};
 
 /// Timestamps of matched poses may differ by this much (seconds; frame numbers match exactly).
@@ -38,13 +44,9 @@ enum Command {
     /// Time every stage over a sequence (files preloaded; decode included):
     /// medians per stage and per frame, peak memory.
     Bench(bench::BenchArgs),
-    /// ATE and RPE of a TUM-format trajectory against ground truth.
-    Eval {
-        /// Estimated trajectory (TUM format).
-        estimate: PathBuf,
-        /// Ground-truth trajectory (TUM format).
-        ground_truth: PathBuf,
-    },
+    /// ATE and RPE of a TUM-format trajectory against ground truth;
+    /// optionally the per-pose errors as CSV and a plot.
+    Eval(evaluate::EvalArgs),
 }
 
 #[derive(Args)]
@@ -58,13 +60,18 @@ struct RunArgs {
     #[arg(long)]
     ply: Option<PathBuf>,
     /// First frame to use (0-based).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     first: usize,
-    /// Number of frames to use (default: all).
-    #[arg(long)]
+    /// Number of frames to use [default: all].
+    #[arg(long, allow_negative_numbers = true, value_parser = positive)]
     count: Option<usize>,
     /// Keep every Nth frame only (simulates dropped frames or a slower camera).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(
+        long,
+        default_value_t = 1,
+        allow_negative_numbers = true,
+        value_parser = clap::value_parser!(u32).range(1..)
+    )]
     stride: u32,
     #[command(flatten)]
     camera: CameraOverrides,
@@ -83,63 +90,126 @@ pub(crate) struct TrackingArgs {
     half: bool,
     /// Surfel budget: when the map holds this many, stale unstable surfels
     /// are evicted and further new surfels skipped (merges continue).
-    #[arg(long)]
-    max_surfels: Option<usize>,
+    #[arg(
+        long,
+        default_value_t = FusionConfig::default().max_surfels,
+        allow_negative_numbers = true,
+        value_parser = positive
+    )]
+    max_surfels: usize,
     /// Tracker: icp (geometry), rgb (photometric) or joint (both).
-    #[arg(long)]
-    tracker: Option<String>,
+    #[arg(
+        long,
+        default_value = TrackerMode::default().name(),
+        value_parser = tracker_parser()
+    )]
+    tracker: TrackerMode,
     /// Joint mode: weight w of the ICP term (A = A_rgb + w^2 A_icp).
-    #[arg(long)]
-    icp_weight: Option<f64>,
+    #[arg(
+        long,
+        default_value_t = TrackerConfig::default().icp_weight,
+        allow_negative_numbers = true,
+        value_parser = non_negative
+    )]
+    icp_weight: f64,
 }
 
 impl TrackingArgs {
-    pub(crate) fn apply(&self, config: &mut SlamConfig) -> Result<()> {
+    pub(crate) fn apply(&self, config: &mut SlamConfig) {
         config.half_resolution = self.half;
-        if let Some(n) = self.max_surfels {
-            config.fusion.max_surfels = n;
+        config.fusion.max_surfels = self.max_surfels;
+        config.tracker.mode = self.tracker;
+        config.tracker.icp_weight = self.icp_weight;
+    }
+}
+
+/// Parses a tracker name; the names are listed in `--help` and in the error.
+fn tracker_parser() -> impl TypedValueParser<Value = TrackerMode> {
+    PossibleValuesParser::new(TrackerMode::ALL.map(TrackerMode::name)).try_map(|name: String| {
+        TrackerMode::from_name(&name).ok_or_else(|| format!("unknown tracker {name:?}"))
+    })
+}
+
+/// Parses a camera preset name; the names are listed in `--help` and in the error.
+fn preset_parser() -> impl TypedValueParser<Value = CameraPreset> {
+    PossibleValuesParser::new(CameraPreset::ALL.map(CameraPreset::name)).try_map(|name: String| {
+        CameraPreset::from_name(&name).ok_or_else(|| format!("unknown preset {name:?}"))
+    })
+}
+
+/// A finite number (negative allowed: ICL-NUIM's fy is -480).
+fn finite(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(v) => Err(format!("{v} is not a finite number")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// A whole number >= 1.
+pub(crate) fn positive(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("must be at least 1".to_owned()),
+        Ok(v) => Ok(v),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// A finite number >= 0.
+pub(crate) fn non_negative(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        Ok(v) => Err(format!("{v} is not a finite number >= 0")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// Help text for a camera setting whose default depends on the preset:
+/// each distinct preset value with the presets that use it.
+fn preset_help(what: &str, value: fn(CameraPreset) -> f32) -> String {
+    let mut groups: Vec<(f32, Vec<&str>)> = Vec::new();
+    for p in CameraPreset::ALL {
+        let v = value(p);
+        match groups.iter_mut().find(|(g, _)| *g == v) {
+            Some((_, names)) => names.push(p.name()),
+            None => groups.push((v, vec![p.name()])),
         }
-        if let Some(name) = &self.tracker {
-            config.tracker.mode = TrackerMode::from_name(name).with_context(|| {
-                let names: Vec<_> = TrackerMode::ALL.iter().map(|m| m.name()).collect();
-                format!("unknown tracker {name:?}; known: {}", names.join(", "))
-            })?;
-        }
-        if let Some(w) = self.icp_weight {
-            if !(w.is_finite() && w >= 0.0) {
-                bail!("--icp-weight must be finite and >= 0, got {w}");
-            }
-            config.tracker.icp_weight = w;
-        }
-        Ok(())
+    }
+    let list: Vec<String> = groups
+        .iter()
+        .map(|(v, names)| format!("{v} {}", names.join("/")))
+        .collect();
+    match groups.as_slice() {
+        [(v, _)] => format!("{what} [default: {v}, every preset]"),
+        _ => format!("{what} [default: preset's: {}]", list.join(", ")),
     }
 }
 
 #[derive(Args)]
 pub(crate) struct CameraOverrides {
-    /// Camera preset (tum-fr1, tum-fr2, tum-fr3, icl-nuim, 7-scenes); default from the layout.
-    #[arg(long)]
-    preset: Option<String>,
-    /// Focal length x, pixels.
-    #[arg(long)]
+    /// Camera preset [default: from the folder's layout].
+    #[arg(long, value_parser = preset_parser())]
+    preset: Option<CameraPreset>,
+    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+        help = preset_help("Focal length x, pixels", |p| p.intrinsics().fx))]
     fx: Option<f32>,
-    /// Focal length y, pixels.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+        help = preset_help("Focal length y, pixels (negative: image y axis points up)", |p| p.intrinsics().fy))]
     fy: Option<f32>,
-    /// Principal point x, pixels.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+        help = preset_help("Principal point x, pixels", |p| p.intrinsics().cx))]
     cx: Option<f32>,
-    /// Principal point y, pixels.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+        help = preset_help("Principal point y, pixels", |p| p.intrinsics().cy))]
     cy: Option<f32>,
-    /// Raw depth units per metre.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+        help = preset_help("Raw depth units per metre", |p| p.depth_settings().scale))]
     depth_scale: Option<f32>,
-    /// Nearest valid depth, metres.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+        help = preset_help("Nearest valid depth, metres", |p| p.depth_settings().min_m))]
     depth_min: Option<f32>,
-    /// Farthest valid depth, metres.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+        help = preset_help("Farthest valid depth, metres", |p| p.depth_settings().max_m))]
     depth_max: Option<f32>,
 }
 
@@ -150,10 +220,7 @@ fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Command::Run(args) => run(&args),
         Command::Bench(args) => bench::bench(&args).map(|()| 0),
-        Command::Eval {
-            estimate,
-            ground_truth,
-        } => evaluate(&estimate, &ground_truth).map(|()| 0),
+        Command::Eval(args) => evaluate::evaluate(&args).map(|()| 0),
     };
     match result {
         Ok(0) => ExitCode::SUCCESS,
@@ -189,14 +256,7 @@ pub(crate) fn config_for(
     o: &CameraOverrides,
     tracking: &TrackingArgs,
 ) -> Result<SlamConfig> {
-    let preset = match &o.preset {
-        Some(name) => CameraPreset::from_name(name).with_context(|| {
-            let names: Vec<_> = CameraPreset::ALL.iter().map(|p| p.name()).collect();
-            format!("unknown preset {name:?}; known: {}", names.join(", "))
-        })?,
-        None => sequence.preset,
-    };
-    let mut config = SlamConfig::from_preset(preset);
+    let mut config = SlamConfig::from_preset(o.preset.unwrap_or(sequence.preset));
     let k = &mut config.intrinsics;
     k.fx = o.fx.unwrap_or(k.fx);
     k.fy = o.fy.unwrap_or(k.fy);
@@ -206,7 +266,7 @@ pub(crate) fn config_for(
     d.scale = o.depth_scale.unwrap_or(d.scale);
     d.min_m = o.depth_min.unwrap_or(d.min_m);
     d.max_m = o.depth_max.unwrap_or(d.max_m);
-    tracking.apply(&mut config)?;
+    tracking.apply(&mut config);
     // Refuse bad camera settings before reading any image.
     config.validate()?;
     Ok(config)
@@ -265,7 +325,15 @@ fn run(args: &RunArgs) -> Result<u8> {
         ProgressBar::new(frames.len() as u64)
     };
     bar.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} {msg}")
+        ProgressStyle::with_template("{bar:30} {pos}/{len} frames, {fps}, ETA {eta}, {msg}")
+            .map(|s| {
+                s.with_key(
+                    "fps",
+                    |state: &ProgressState, w: &mut dyn std::fmt::Write| {
+                        let _ = write!(w, "{:.1} fps", state.per_sec());
+                    },
+                )
+            })
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
@@ -307,7 +375,10 @@ fn run(args: &RunArgs) -> Result<u8> {
                     _ => {}
                 }
                 streak = report.counts.lost_streak;
-                bar.set_message(format!("{} surfels", report.surfels));
+                bar.set_message(format!(
+                    "{} surfels, {} lost, {} recovered",
+                    report.surfels, report.counts.lost, report.counts.recovered
+                ));
             }
             Err(e) => {
                 failed += 1;
@@ -334,7 +405,7 @@ fn run(args: &RunArgs) -> Result<u8> {
         "ATE n/a (no ground truth)".to_string()
     } else {
         match ate(slam.trajectory(), &sequence.ground_truth, MAX_DT) {
-            Ok(a) => format!("ATE {:.3} cm ({} poses)", a.rmse_m * 100.0, a.pairs),
+            Ok(a) => format!("ATE {} ({} poses)", evaluate::cm(a.rmse_m), a.pairs),
             Err(e) => format!("ATE n/a ({e})"),
         }
     };
@@ -348,27 +419,4 @@ fn run(args: &RunArgs) -> Result<u8> {
         slam.map().len(),
     );
     Ok(if failed > 0 { EXIT_FRAMES_SKIPPED } else { 0 })
-}
-
-fn evaluate(estimate: &Path, ground_truth: &Path) -> Result<()> {
-    let read = |p: &Path| -> Result<_> {
-        let text =
-            std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-        Ok(trajectory::parse_tum(&text, &p.display().to_string())?)
-    };
-    let (est, gt) = (read(estimate)?, read(ground_truth)?);
-    let a = ate(&est, &gt, MAX_DT)?;
-    let r = rpe(&est, &gt, MAX_DT)?;
-    println!(
-        "ATE rmse {:.4} m, mean {:.4} m, median {:.4} m, max {:.4} m ({} poses); RPE {:.4} m, {:.3} deg per frame ({} pairs)",
-        a.rmse_m,
-        a.mean_m,
-        a.median_m,
-        a.max_m,
-        a.pairs,
-        r.translation_rmse_m,
-        r.rotation_rmse_rad.to_degrees(),
-        r.pairs
-    );
-    Ok(())
 }
