@@ -40,7 +40,8 @@ export function pingPong(n, count) {
 
 /**
  * Runs `frames` frames of `folder` looped forwards and backwards.
- * Returns {samples: [{frame, surfels, memory}], counts, skipped, lost, ...}.
+ * Returns {samples: [{frame, surfels, slots, memory}], counts, skipped, lost, ...}
+ * (surfels: what the map holds; slots: the arrays' length, which the budget bounds).
  */
 export async function longRun(pkg, folder, { frames, maxSurfels = null, every = 100, log = null }) {
   const names = (await listFiles(folder)).sort();
@@ -65,18 +66,19 @@ export async function longRun(pkg, folder, { frames, maxSurfels = null, every = 
     const r = slam.pushFrame(colour, depth, i);
     skipped += r.skipped;
     if (!r.pose.every(Number.isFinite)) nonFinite++;
-    if (r.surfels > maxSeen) {
-      maxSeen = r.surfels;
+    // The arrays (and the budget) hold the surfels plus absorbed ones awaiting compaction.
+    if (r.surfelSlots > maxSeen) {
+      maxSeen = r.surfelSlots;
       stoppedGrowingAt = i + 1;
     }
     last = r;
     const n = i + 1;
     if (n % every === 0 || n === order.length) {
-      const sample = { frame: n, surfels: r.surfels, memory: pkg.memory.buffer.byteLength, counts: r.counts };
+      const sample = { frame: n, surfels: r.surfels, slots: r.surfelSlots, memory: pkg.memory.buffer.byteLength, counts: r.counts };
       samples.push(sample);
       if (log) {
         log(
-          `frame ${n}: ${r.surfels} surfels, wasm memory ${(sample.memory / 2 ** 20).toFixed(1)} MiB, ` +
+          `frame ${n}: ${r.surfels} surfels (${r.surfelSlots} slots), wasm memory ${(sample.memory / 2 ** 20).toFixed(1)} MiB, ` +
             `tracked ${r.counts.tracked} lost ${r.counts.lost} recovered ${r.counts.recovered}, ` +
             `${((performance.now() - t0) / n).toFixed(0)} ms/frame`,
         );
@@ -165,7 +167,7 @@ async function main() {
   );
   console.log(
     `  wasm memory at frame 100: ${mib(at(100).memory)} (${at(100).surfels} surfels); at frame ${r.frames}: ${mib(r.finalMemory)} ` +
-      `(${r.samples.at(-1).surfels} surfels); the map last grew at frame ${r.stoppedGrowingAt} (${r.maxSurfelsSeen} surfels)`,
+      `(${r.samples.at(-1).surfels} surfels); the map's arrays last grew at frame ${r.stoppedGrowingAt} (${r.maxSurfelsSeen} slots)`,
   );
   const after = r.samples.filter((s) => s.frame >= r.stoppedGrowingAt);
   if (after.length) {

@@ -107,7 +107,7 @@ const result = {
   wallMsPerFrame: wallMs / n,
   stagesMedianMs: Object.fromEntries(Object.entries(stages).map(([k, v]) => [k, median(v)])),
   lost,
-  surfels: slam.surfelCount,
+  surfels: slam.liveSurfels,
   ate: null,
 };
 if (sequence.groundTruthTum) {
