@@ -10,6 +10,9 @@
 use glam::{DAffine3, DQuat, DVec3};
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+mod common;
+use common::shared_dataset;
 use surfel_slam::dataset::trajectory::{format_tum, parse_tum};
 
 const CLIP_GT: &str = "www/sample/tum_fr3_teddy_clip/groundtruth.txt";
@@ -285,24 +288,6 @@ fn plots_are_drawn_as_svg_and_png() {
     let a = eval(&est, &gt, &["--plot", bad.to_str().expect("utf-8")]);
     assert_eq!(a.code, 1);
     assert!(a.stderr.contains("no_such_dir"), "{}", a.stderr);
-}
-
-/// ../shared/data/`name`, or `None` (with a message) when absent; absent
-/// under `CI=true` is a failure.
-fn shared_dataset(name: &str) -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name);
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "{} is absent under CI=true",
-        dir.display()
-    );
-    eprintln!("skipping: {} not found", dir.display());
-    None
 }
 
 #[test]

@@ -216,7 +216,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         total,
         size.width,
         size.height,
-        slam.map().len(),
+        slam.map().live_len(),
         rayon::current_num_threads(),
     );
     if !sequence.ground_truth.is_empty() {

@@ -416,7 +416,7 @@ fn run(args: &RunArgs) -> Result<u8> {
         counts.tracked,
         counts.lost,
         counts.recovered,
-        slam.map().len(),
+        slam.map().live_len(),
     );
     Ok(if failed > 0 { EXIT_FRAMES_SKIPPED } else { 0 })
 }
