@@ -11,7 +11,7 @@
 // READ_BATCH frames leaves the frames in between undisturbed.
 //
 // Messages in:  {type: 'source', id, entries} (a sequence's files, as for
-//               SequenceSource), {type: 'read', id, index, colour, depth,
+//               openSource: a folder's files or one archive), {type: 'read', id, index, colour, depth,
 //               decode} (relative paths; decode: false = read only),
 //               {type: 'readAhead', id, paths} (read now, keep the bytes for
 //               a later 'read').
@@ -19,10 +19,20 @@
 //               {width, height, rgba, preview} or null when wasm is to decode
 //               the colour image; `preview` the page's thumbnail, an
 //               ImageBitmap) or {id, index, error} (a file cannot be read).
-import { SequenceSource } from './sequence.js';
+import { openSource } from './sequence.js';
 import { readAndDecodeColour } from './colour-decode.js';
 
-const sources = new Map(); // sequence id -> SequenceSource (the current one only)
+// sequence id -> promise of its SequenceSource / ArchiveSource (the current one only)
+const sources = new Map();
+
+// An archive is read through the wasm module's ArchiveReader: this worker
+// loads the single-threaded module for it, once, only when one is opened.
+let wasmModule = null;
+const loadWasm = () =>
+  (wasmModule ??= import('./pkg/surfel_slam.js').then(async (m) => {
+    await m.default();
+    return m;
+  }));
 // path -> promise of its bytes, read ahead for the current sequence; an entry
 // is taken (deleted) by the 'read' that uses it.
 const ahead = new Map();
@@ -41,11 +51,21 @@ self.onmessage = async ({ data }) => {
   if (data.type === 'source') {
     sources.clear();
     ahead.clear();
-    sources.set(data.id, new SequenceSource(data.entries));
+    const opening = openSource(data.entries, loadWasm);
+    opening.catch(() => {}); // reported by each 'read' that needs it
+    sources.set(data.id, opening);
     return;
   }
-  const source = sources.get(data.id);
-  if (!source) return; // a sequence replaced since: nobody waits for it
+  const opening = sources.get(data.id);
+  if (!opening) return; // a sequence replaced since: nobody waits for it
+  let source;
+  try {
+    source = await opening;
+  } catch (e) {
+    if (data.type === 'read') self.postMessage({ id: data.id, index: data.index, error: e && e.message ? e.message : String(e) });
+    return;
+  }
+  if (sources.get(data.id) !== opening) return;
   if (data.type === 'readAhead') {
     for (const path of data.paths) {
       if (ahead.has(path)) continue;

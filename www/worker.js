@@ -13,7 +13,7 @@
 //               'exportTrajectory'.
 // Messages out: 'ready', 'sequence', 'frame', 'frame-error', 'load-error',
 //               'state', 'ate', 'export', 'fatal'.
-import { SequenceSource } from './sequence.js';
+import { openSource } from './sequence.js';
 import { readAndDecodeColour, PREVIEW_WIDTH, PREVIEW_HEIGHT } from './colour-decode.js';
 
 let wasm = null;
@@ -142,13 +142,23 @@ function reportState(extra = {}) {
 // ---- loading a sequence -----------------------------------------------------
 
 async function load({ name, entries, autoplay }) {
-  const source = new SequenceSource(entries);
+  let source;
+  try {
+    source = await openSource(entries, async () => wasm); // a folder, or an archive read by wasm
+  } catch (e) {
+    post({ type: 'load-error', name, message: `${name}: ${errorText(e)}` });
+    reportState();
+    return;
+  }
   const paths = source.paths;
   let parsed;
   try {
     const layout = toPlain(wasm.detectLayout(paths));
     const texts = {};
-    for (const f of layout.indexFiles) texts[f] = await source.readText(f);
+    // 7-Scenes' index files are its per-frame pose files: one that cannot be
+    // read leaves its frame without ground truth, not the sequence unread.
+    const optional = layout.kind === '7-scenes';
+    for (const f of layout.indexFiles) texts[f] = await source.readText(f).catch((e) => (optional ? undefined : Promise.reject(e)));
     parsed = toPlain(wasm.parseSequence(paths, texts, name));
   } catch (e) {
     // Keep the current sequence and map: only a good sequence replaces them.
