@@ -313,6 +313,11 @@ async function processNext() {
   if (!seq || !slam || next >= seq.frames.length) return;
   const index = next++;
   const frame = seq.frames[index];
+  if (frame.missing) {
+    // An image the index lists is absent (a half-copied dataset): parseSequence named it.
+    post({ type: 'frame-error', index, message: frame.missing, frameCount: seq.frames.length });
+    return;
+  }
   const t0 = performance.now();
   const reading = readFrame(index);
   startPrefetch(index);
