@@ -328,3 +328,77 @@ fn half_copied_teddy_skips_the_missing_frames() {
         a.stderr
     );
 }
+
+/// A 7-Scenes folder (`seq-01/frame-NNNNNN.{color.png,depth.png,pose.txt}`)
+/// from the bundled clip's first `n` frames with ground truth: depth rescaled
+/// to millimetres, poses from its ground truth. Returns the folder.
+fn seven_scenes_from_clip(root: &Path, n: usize) -> PathBuf {
+    let clip = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("www/sample/tum_fr3_teddy_clip");
+    let tum = Sequence::open(&clip).expect("clip");
+    let dir = root.join("seven_scenes_teddy");
+    std::fs::create_dir_all(dir.join("seq-01")).expect("dir");
+    let mut written = 0;
+    for f in &tum.frames {
+        let Some(pose) = tum.ground_truth_for(f.timestamp, 0.02) else {
+            continue;
+        };
+        let stem = dir.join(format!("seq-01/frame-{written:06}"));
+        std::fs::copy(clip.join(&f.colour), stem.with_extension("color.png")).expect("copy");
+        let depth = image::open(clip.join(&f.depth))
+            .expect("depth")
+            .into_luma16();
+        let mm = image::ImageBuffer::from_fn(depth.width(), depth.height(), |x, y| {
+            image::Luma([(f32::from(depth.get_pixel(x, y)[0]) / 5.0).round() as u16])
+        });
+        mm.save(stem.with_extension("depth.png"))
+            .expect("depth png");
+        let m = glam::DMat4::from(pose);
+        let text: String = (0..4)
+            .map(|r| {
+                let row = m.row(r);
+                format!("{:.12} {:.12} {:.12} {:.12}\n", row.x, row.y, row.z, row.w)
+            })
+            .collect();
+        std::fs::write(stem.with_extension("pose.txt"), text).expect("pose");
+        written += 1;
+        if written == n {
+            break;
+        }
+    }
+    dir
+}
+
+#[test]
+fn seven_scenes_ground_truth_from_pose_files_in_a_folder_and_a_zip() {
+    let tmp = scratch("7scenes");
+    let dir = seven_scenes_from_clip(&tmp.0, 12);
+    let zip = tmp.0.join("seven_scenes_teddy.zip");
+    pack(&dir, "seven_scenes_teddy", &zip);
+    for path in [&dir, &zip] {
+        let sequence = Sequence::open(path).expect("opens");
+        assert_eq!(sequence.frames.len(), 12);
+        assert_eq!(sequence.ground_truth.len(), 12, "{}", path.display());
+        let a = run_cli(path);
+        eprintln!("7-Scenes from the clip: {}", a.stdout.trim());
+        assert_eq!(a.code, 0, "{}", a.stderr);
+        assert!(ate_cm(&a) < 5.0, "{}", a.stdout);
+    }
+    // A pose file that cannot be read (a dangling link): a warning, that frame
+    // without ground truth; the run goes on.
+    #[cfg(unix)]
+    {
+        let pose = dir.join("seq-01/frame-000004.pose.txt");
+        std::fs::remove_file(&pose).expect("remove");
+        std::os::unix::fs::symlink(tmp.0.join("nowhere.txt"), &pose).expect("symlink");
+        let sequence = Sequence::open(&dir).expect("opens");
+        assert_eq!(sequence.ground_truth.len(), 11);
+        assert_eq!(sequence.warnings.len(), 1);
+        let a = run_cli(&dir);
+        assert_eq!(a.code, 0, "{}", a.stderr);
+        assert!(
+            a.stderr.contains("warning: cannot read") && a.stderr.contains("frame-000004.pose.txt"),
+            "{}",
+            a.stderr
+        );
+    }
+}
