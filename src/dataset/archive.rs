@@ -424,17 +424,25 @@ fn read_gz<R: Read + Seek>(
             continue;
         }
         let size = *size;
-        skip(&mut s.decoder, offset - s.position)?;
+        skip(&mut s.decoder, gap(s.position, *offset)?)?;
         s.position = *offset;
         let bytes = read_exact_size(&mut s.decoder, size)?;
         s.position += size;
         kept.insert(name.clone(), bytes);
     }
-    skip(&mut s.decoder, span.offset - s.position)?;
+    skip(&mut s.decoder, gap(s.position, span.offset)?)?;
     s.position = span.offset;
     let bytes = read_exact_size(&mut s.decoder, span.size)?;
     s.position += span.size;
     Ok(bytes)
+}
+
+/// Bytes from `position` to `offset`; members never overlap in a tar the
+/// listing accepted, so a negative gap is a corrupt archive.
+fn gap(position: u64, offset: u64) -> io::Result<u64> {
+    offset
+        .checked_sub(position)
+        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidData, "overlapping tar members"))
 }
 
 fn skip(reader: &mut impl Read, n: u64) -> io::Result<()> {

@@ -7,7 +7,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
-import { startBrowser, openPage, waitForStatus, foreignRequests, saveScreenshot, skipUnlessReady } from './helpers.mjs';
+import { SHARED_DATA, startBrowser, openPage, waitForStatus, foreignRequests, saveScreenshot, skipUnlessReady } from './helpers.mjs';
 import { CLIP, makeSevenScenes, tempDir, tumSubset, writeArchive } from '../node/datasets.mjs';
 
 const FRAMES = 12;
@@ -50,6 +50,39 @@ test('an archive picked plays like the folder', { timeout: 300_000 }, async (t) 
     assert.equal(status.sequence, 'rgbd_dataset_freiburg3_clip', 'the previous sequence stays loaded');
     assert.deepEqual(foreignRequests(requests, env.origin), []);
     assert.deepEqual(consoleErrors.filter((e) => /panicked|unreachable/.test(e)), []);
+  } finally {
+    await env.close();
+    fs.rmSync(tmp, { recursive: true, force: true });
+  }
+});
+
+test('the whole teddy sequence plays from a .tgz picked', { timeout: 600_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const teddy = path.join(SHARED_DATA, 'tum_fr3_teddy');
+  if (!fs.existsSync(teddy)) {
+    if (process.env.CI === 'true') throw new Error(`${teddy} is required when CI=true`);
+    return t.skip(`${teddy} is absent (needs ../shared/data beside the checkout)`);
+  }
+  const tmp = tempDir('surfel-slam-page-teddy-');
+  const archive = writeArchive(teddy, 'rgbd_dataset_freiburg3_teddy', tmp, 'tgz');
+  const env = await startBrowser();
+  try {
+    const { page } = await openPage(env, '/?sample=0');
+    await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
+    const t0 = Date.now();
+    await page.locator('#archive-input').setInputFiles(archive);
+    await waitForStatus(page, (s) => s.sequence === 'rgbd_dataset_freiburg3_teddy' && s.framesProcessed >= 1, { timeoutMs: 120_000 });
+    const firstFrameS = (Date.now() - t0) / 1000;
+    const status = await waitForStatus(page, (s) => s.done && !s.playing, { timeoutMs: 500_000, log: (m) => t.diagnostic(m) });
+    t.diagnostic(
+      `teddy.tgz (${(fs.statSync(archive).size / 2 ** 20).toFixed(0)} MB) on the page: first frame after ${firstFrameS.toFixed(1)} s, ` +
+        `${status.framesProcessed}/${status.frameCount} frames at ${status.fpsAverage} fps, ATE ${(status.ate * 100).toFixed(3)} cm, module ${status.module}`,
+    );
+    assert.equal(status.error, null, status.error);
+    assert.equal(status.framesProcessed, status.frameCount);
+    assert.ok(status.frameCount > 150);
+    // The CLI gives 0.71 cm on the folder and on the archive.
+    assert.ok(status.ate < 0.01, `ATE ${status.ate} m`);
   } finally {
     await env.close();
     fs.rmSync(tmp, { recursive: true, force: true });
