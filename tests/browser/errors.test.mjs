@@ -1,7 +1,7 @@
 // The page on the bad inputs not covered by upload.test.mjs (which does the
 // 8-bit depth, corrupt colour and not-a-dataset cases): truncated depth, RGB
-// depth, colour/depth size mismatch, a frame of another size, a file listed
-// in an index but missing, a malformed ground-truth line, an empty folder,
+// depth, colour/depth size mismatch, a frame of another size, every frame
+// missing a file listed in an index, a malformed ground-truth line, an empty folder,
 // absurd intrinsics and a zero depth scale. Each must be shown on the page
 // naming the file or setting; the map and the page survive.
 import { test } from 'node:test';
