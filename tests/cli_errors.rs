@@ -240,10 +240,14 @@ fn bad_folders_and_settings_are_refused_by_name() {
     std::fs::remove_file(missing.join(&depth[2])).expect("remove");
     let a = run(&missing, &[]);
     expect(
-        "file listed in an index is missing",
+        "file listed in an index is missing (that frame is skipped)",
         &a,
-        1,
-        &[depth[2].as_str(), "is missing (listed in depth.txt)"],
+        3,
+        &[
+            "frame 2 skipped",
+            depth[2].as_str(),
+            "is missing (listed in depth.txt)",
+        ],
     );
 
     let (bad_gt, _, _) = tum_clip(&tmp.0, "bad_gt");

@@ -632,6 +632,7 @@ function loadSequence(seq, autoplay) {
 
 setupSequenceInput({
   input: $('folder-input'),
+  archiveInput: $('archive-input'),
   dropTarget: document.body,
   onSequence: (seq) => loadSequence(seq, true),
   onError: (m) => reportError(m),

@@ -13,12 +13,23 @@
 // Messages: ToReader in protocol.js. Out: {id, index, colourBuf, depthBuf,
 // decoded} (`decoded`: {width, height, rgba, preview} or null when wasm is to
 // decode the colour image; `preview` the page's thumbnail, an ImageBitmap) or
-// {id, index, error} (a file cannot be read).
+// {id, index, error} (a file cannot be read). A source's entries are a
+// folder's files or one archive (see openSource in sequence.js).
 import { ToReader } from './protocol.js';
-import { SequenceSource } from './sequence.js';
+import { openSource } from './sequence.js';
 import { readAndDecodeColour } from './colour-decode.js';
 
-const sources = new Map(); // sequence id -> SequenceSource (the current one only)
+// sequence id -> promise of its SequenceSource / ArchiveSource (the current one only)
+const sources = new Map();
+
+// An archive is read through the wasm module's ArchiveReader: this worker
+// loads the single-threaded module for it, once, only when one is opened.
+let wasmModule = null;
+const loadWasm = () =>
+  (wasmModule ??= import('./pkg/surfel_slam.js').then(async (m) => {
+    await m.default();
+    return m;
+  }));
 // path -> promise of its bytes, read ahead for the current sequence; an entry
 // is taken (deleted) by the 'read' that uses it.
 const ahead = new Map();
@@ -37,11 +48,21 @@ self.onmessage = async ({ data }) => {
   if (data.type === ToReader.SOURCE) {
     sources.clear();
     ahead.clear();
-    sources.set(data.id, new SequenceSource(data.entries));
+    const opening = openSource(data.entries, loadWasm);
+    opening.catch(() => {}); // reported by each 'read' that needs it
+    sources.set(data.id, opening);
     return;
   }
-  const source = sources.get(data.id);
-  if (!source) return; // a sequence replaced since: nobody waits for it
+  const opening = sources.get(data.id);
+  if (!opening) return; // a sequence replaced since: nobody waits for it
+  let source;
+  try {
+    source = await opening;
+  } catch (e) {
+    if (data.type === ToReader.READ) self.postMessage({ id: data.id, index: data.index, error: e && e.message ? e.message : String(e) });
+    return;
+  }
+  if (sources.get(data.id) !== opening) return;
   if (data.type === ToReader.READ_AHEAD) {
     for (const path of data.paths) {
       if (ahead.has(path)) continue;

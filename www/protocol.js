@@ -59,7 +59,7 @@ export const FromWorker = Object.freeze({
 
 /** SLAM worker -> frame reader (`{type, ...fields}`); the reader answers `{id, index, colourBuf, depthBuf, decoded}` or `{id, index, error}`. */
 export const ToReader = Object.freeze({
-  /** {id, entries}: the current sequence's files (as for SequenceSource). */
+  /** {id, entries}: the current sequence's files: a folder's or one archive (as for openSource). */
   SOURCE: 'source',
   /** {id, index, colour, depth, decode}: read (and decode the colour of) one frame. */
   READ: 'read',

@@ -1,15 +1,25 @@
-// Sequence input: the folder picker, drag-and-drop of a folder, the bundled
-// sample, and lazy per-frame file reading.
+// Sequence input: the folder picker, the archive picker, drag-and-drop of a
+// folder or an archive, the bundled sample, and lazy per-frame file reading.
 //
 // A sequence is handed around as `{ name, entries }`, `entries` an array of
 // `[relativePath, File | url]` ('/'-separated paths, relative to the chosen
-// folder's parent, as `webkitRelativePath` spells them). The dataset layout is
-// *not* parsed here: the worker passes the paths to the wasm module's
+// folder's parent, as `webkitRelativePath` spells them). An archive (.zip,
+// .tar, .tar.gz / .tgz) is one entry, `[fileName, File]`. The dataset layout
+// is *not* parsed here: the worker passes the paths to the wasm module's
 // detectLayout / parseSequence (the same parser as the native CLI).
 //
-// SequenceSource (DOM-free) is also used inside the worker, which reads each
-// frame's files only when it needs them (File.arrayBuffer() or a same-origin
-// fetch for the bundled sample).
+// openSource() (DOM-free) is used inside the workers, which read each frame's
+// files only when they need them: File.arrayBuffer() or a same-origin fetch
+// for a folder or the bundled sample; for an archive, the wasm module's
+// ArchiveReader (the same reader as the CLI), which reads the File piece by
+// piece with FileReaderSync (never the whole archive at once, except a
+// .tar.gz, which it decompresses in order, see src/dataset/archive.rs).
+
+/** Whether a file name is an archive the wasm ArchiveReader reads. */
+export const isArchiveName = (name) => /\.(zip|tar|tgz|tar\.gz)$/i.test(name);
+
+/** `teddy.tar.gz` -> `teddy`. */
+export const archiveStem = (name) => name.replace(/\.(zip|tar|tgz|tar\.gz)$/i, '');
 
 /** Lazily readable set of files keyed by relative path. */
 export class SequenceSource {
@@ -43,6 +53,52 @@ export class SequenceSource {
   }
 }
 
+/** The files of an archive, read through the wasm module's ArchiveReader. */
+export class ArchiveSource {
+  /** @param reader a wasm ArchiveReader */
+  constructor(reader) {
+    this.reader = reader;
+    this.names = reader.names;
+    this.set = new Set(this.names);
+  }
+
+  get paths() {
+    return this.names;
+  }
+
+  /** Bytes of one file (an ArrayBuffer of its own, transferable). */
+  async read(path) {
+    if (!this.set.has(path)) throw new Error(`${path} is missing from the archive`);
+    return this.reader.read(path).buffer;
+  }
+
+  async readText(path) {
+    return new TextDecoder().decode(await this.read(path));
+  }
+}
+
+/**
+ * The files of a sequence: a SequenceSource, or an ArchiveSource when the
+ * entries are one archive. `loadWasm()` returns the initialised wasm module
+ * (called only for an archive).
+ */
+export async function openSource(entries, loadWasm) {
+  if (entries.length !== 1 || !isArchiveName(entries[0][0])) return new SequenceSource(entries);
+  const [name, file] = entries[0];
+  const wasm = await loadWasm();
+  let source;
+  if (typeof file !== 'string' && typeof FileReaderSync === 'function') {
+    // Pieces on demand: a worker may read a Blob synchronously, which the
+    // reader (synchronous Rust io::Read) needs.
+    const sync = new FileReaderSync();
+    source = { size: file.size, read: (offset, length) => sync.readAsArrayBuffer(file.slice(offset, offset + length)) };
+  } else {
+    const bytes = typeof file === 'string' ? await (await fetch(file)).arrayBuffer() : await file.arrayBuffer();
+    source = new Uint8Array(bytes);
+  }
+  return new ArchiveSource(new wasm.ArchiveReader(source, name));
+}
+
 const isHidden = (path) => path.split('/').some((c) => c.startsWith('.') && c !== '.' && c !== '..');
 
 function folderName(paths, fallback) {
@@ -50,8 +106,12 @@ function folderName(paths, fallback) {
   return first ? first.split('/')[0] : fallback;
 }
 
-/** From an `<input type=file webkitdirectory>` FileList. */
+/** A sequence that is one archive file. */
+export const fromArchiveFile = (file) => ({ name: archiveStem(file.name), entries: [[file.name, file]] });
+
+/** From an `<input type=file webkitdirectory>` FileList (or one archive picked). */
 export function fromFileList(fileList) {
+  if (fileList.length === 1 && isArchiveName(fileList[0].name)) return fromArchiveFile(fileList[0]);
   const entries = [];
   for (const file of fileList) {
     const path = file.webkitRelativePath || file.name;
@@ -99,6 +159,9 @@ export async function fromDataTransfer(dataTransfer) {
   } else {
     for (const file of dataTransfer.files) entries.push([file.name, file]);
   }
+  if (entries.length === 1 && isArchiveName(entries[0][0]) && typeof entries[0][1] !== 'string') {
+    return fromArchiveFile(entries[0][1]);
+  }
   const visible = entries.filter(([p]) => !isHidden(p));
   visible.sort((a, b) => (a[0] < b[0] ? -1 : a[0] > b[0] ? 1 : 0));
   return { name: folderName(visible.map((e) => e[0]), 'dropped files'), entries: visible };
@@ -118,11 +181,19 @@ export async function fromManifest(manifestUrl) {
 }
 
 /**
- * Wires the folder input and drag-and-drop onto `dropTarget`.
- * `onSequence({name, entries})` is called for each chosen folder;
+ * Wires the folder input, the archive input and drag-and-drop onto
+ * `dropTarget`. `onSequence({name, entries})` is called for each chosen
+ * folder or archive;
  * `onError(message)` when nothing usable was chosen.
  */
-export function setupSequenceInput({ input, dropTarget, onSequence, onError }) {
+export function setupSequenceInput({ input, archiveInput = null, dropTarget, onSequence, onError }) {
+  archiveInput?.addEventListener('change', () => {
+    const file = archiveInput.files?.[0];
+    archiveInput.value = '';
+    if (!file) return;
+    if (isArchiveName(file.name)) onSequence(fromArchiveFile(file));
+    else onError(`${file.name}: not a .zip, .tar, .tar.gz or .tgz archive`);
+  });
   input.addEventListener('change', () => {
     if (!input.files || input.files.length === 0) {
       onError('the chosen folder is empty: no files to read');

@@ -16,7 +16,7 @@
 //
 // Messages: ToWorker and FromWorker in protocol.js.
 import { ToWorker, FromWorker, ToReader } from './protocol.js';
-import { SequenceSource } from './sequence.js';
+import { openSource } from './sequence.js';
 import { readAndDecodeColour, PREVIEW_WIDTH, PREVIEW_HEIGHT } from './colour-decode.js';
 
 let wasm = null;
@@ -237,13 +237,24 @@ function reportState(extra = {}) {
 
 async function load({ name, entries, autoplay, options }) {
   await freshModule();
-  const source = new SequenceSource(entries);
+  let source;
+  try {
+    source = await openSource(entries, async () => wasm); // a folder, or an archive read by wasm
+  } catch (e) {
+    if (isModuleFailure(e)) throw e;
+    post({ type: FromWorker.LOAD_ERROR, name, message: `${name}: ${errorText(e)}` });
+    reportState();
+    return;
+  }
   const paths = source.paths;
   let parsed;
   try {
     const layout = toPlain(wasm.detectLayout(paths));
     const texts = {};
-    for (const f of layout.indexFiles) texts[f] = await source.readText(f);
+    // 7-Scenes' index files are its per-frame pose files: one that cannot be
+    // read leaves its frame without ground truth, not the sequence unread.
+    const optional = layout.kind === '7-scenes';
+    for (const f of layout.indexFiles) texts[f] = await source.readText(f).catch((e) => (optional ? undefined : Promise.reject(e)));
     parsed = toPlain(wasm.parseSequence(paths, texts, name));
   } catch (e) {
     // Keep the current sequence and map: only a good sequence replaces them.
@@ -402,6 +413,11 @@ async function processNext() {
   if (!seq || !slam || next >= seq.frames.length) return;
   const index = next++;
   const frame = seq.frames[index];
+  if (frame.missing) {
+    // An image the index lists is absent (a half-copied dataset): parseSequence named it.
+    post({ type: FromWorker.FRAME_ERROR, index, message: frame.missing, frameCount: seq.frames.length });
+    return;
+  }
   const t0 = performance.now();
   const reading = readFrame(index);
   startPrefetch(index);

@@ -17,7 +17,7 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use surfel_slam::dataset::{ply::write_ply, read_frame, trajectory, FrameEntry, Sequence};
+use surfel_slam::dataset::{ply::write_ply, trajectory, DatasetSource, FrameEntry, Sequence};
 use surfel_slam::eval::ate;
 use surfel_slam::fusion::FusionConfig;
 use surfel_slam::track::{TrackerConfig, TrackerMode};
@@ -51,7 +51,8 @@ enum Command {
 
 #[derive(Args)]
 struct RunArgs {
-    /// Dataset folder (layout detected automatically).
+    /// Dataset folder, or archive (.zip, .tar, .tar.gz / .tgz) read in place;
+    /// layout detected automatically.
     dataset: PathBuf,
     /// Write the estimated trajectory here (TUM format, world_from_camera).
     #[arg(long)]
@@ -275,13 +276,13 @@ pub(crate) fn config_for(
 /// The first frame that decodes, for the sequence's image size; the frames
 /// before it are named on stderr.
 fn first_readable(
-    dir: &Path,
+    source: &mut DatasetSource,
     frames: &[&FrameEntry],
     config: &SlamConfig,
 ) -> Result<(usize, usize)> {
     let mut last_error = None;
     for entry in frames {
-        match read_frame(dir, entry, &config.depth) {
+        match source.read_frame(entry, &config.depth) {
             Ok(f) => return Ok((f.width, f.height)),
             Err(e) => {
                 eprintln!("frame {} unreadable: {e}", entry.index);
@@ -296,8 +297,15 @@ fn first_readable(
 }
 
 fn run(args: &RunArgs) -> Result<u8> {
-    let sequence = Sequence::open(&args.dataset)
+    // A folder or an archive (.zip, .tar, .tar.gz), read in place.
+    let mut source = DatasetSource::open(&args.dataset)
         .with_context(|| format!("opening {}", args.dataset.display()))?;
+    let sequence = source
+        .sequence()
+        .with_context(|| format!("opening {}", args.dataset.display()))?;
+    for warning in &sequence.warnings {
+        eprintln!("warning: {warning}");
+    }
     let frames: Vec<_> = sequence
         .frames
         .iter()
@@ -314,7 +322,7 @@ fn run(args: &RunArgs) -> Result<u8> {
     }
     let mut config = config_for(&sequence, &args.camera, &args.tracking)?;
     // The sequence's own image size wins over the preset's.
-    let (width, height) = first_readable(&args.dataset, &frames, &config)?;
+    let (width, height) = first_readable(&mut source, &frames, &config)?;
     config.intrinsics.width = width;
     config.intrinsics.height = height;
     let mut slam = Pipeline::new(config)?;
@@ -338,7 +346,8 @@ fn run(args: &RunArgs) -> Result<u8> {
     );
     let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
     for entry in &frames {
-        let result = read_frame(&args.dataset, entry, &slam.config().depth)
+        let result = source
+            .read_frame(entry, &slam.config().depth)
             .map_err(anyhow::Error::from)
             .and_then(|f| {
                 let t0 = std::time::Instant::now();

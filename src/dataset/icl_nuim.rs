@@ -13,7 +13,7 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::{index_text, trajectory, DatasetError, FrameEntry, Layout, Parsed};
+use super::{check_listed, index_text, trajectory, DatasetError, FrameEntry, Layout, Parsed};
 
 /// Builds the ICL-NUIM frame list and ground truth from the layout's index
 /// texts (`index_files[0]` = associations, `[1]` = `*.gt.freiburg` if any).
@@ -33,15 +33,9 @@ pub(crate) fn parse(
         assoc_name,
         &layout.root_prefix,
     )?;
-    for frame in &frames {
-        for path in [&frame.colour, &frame.depth] {
-            if !listing.contains(path.as_str()) {
-                return Err(DatasetError::MissingFile {
-                    path: path.clone(),
-                    listed_in: assoc_name.clone(),
-                });
-            }
-        }
+    for frame in &mut frames {
+        frame.missing = check_listed(listing, &frame.colour, assoc_name)
+            .or_else(|| check_listed(listing, &frame.depth, assoc_name));
     }
     frames.sort_by(|a, b| a.timestamp.total_cmp(&b.timestamp));
     for (i, frame) in frames.iter_mut().enumerate() {
@@ -90,6 +84,7 @@ pub fn parse_associations(
             colour: format!("{root_prefix}{colour}"),
             depth: format!("{root_prefix}{depth}"),
             pose_file: None,
+            missing: None,
         });
     }
     Ok(frames)

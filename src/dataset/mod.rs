@@ -21,6 +21,7 @@
 //! them), metres, timestamps in seconds (TUM) or frame numbers (ICL-NUIM,
 //! 7-Scenes).
 
+pub mod archive;
 pub mod icl_nuim;
 mod open;
 pub mod ply;
@@ -36,7 +37,8 @@ use thiserror::Error;
 use crate::camera::CameraPreset;
 use crate::frame::FrameError;
 
-pub use open::{decode_frame, list_files, read_frame};
+pub use archive::{ArchiveFormat, ArchiveReader};
+pub use open::{decode_frame, list_files, read_frame, DatasetSource};
 pub use seven_scenes::parse_pose_matrix;
 
 /// Why a dataset could not be read; every variant names the file concerned.
@@ -82,6 +84,22 @@ pub enum DatasetError {
     /// The index files list no usable frame.
     #[error("the sequence has no frames (no colour image could be paired with a depth image)")]
     NoFrames,
+    /// Every frame listed misses an image (a half-copied dataset with nothing left to run).
+    #[error("none of the {frames} frames listed can be read: {first}, and an image of every other frame is missing too")]
+    NoReadableFrame {
+        /// How many frames the index lists.
+        frames: usize,
+        /// Why the first one cannot be read.
+        first: Box<DatasetError>,
+    },
+    /// An archive (`.zip`, `.tar`, `.tar.gz`) could not be read.
+    #[error("{path}: {message}")]
+    Archive {
+        /// The archive file.
+        path: String,
+        /// What is wrong with it.
+        message: String,
+    },
     /// An image of a frame could not be decoded.
     #[error("{path}: {source}")]
     Frame {
@@ -126,7 +144,8 @@ pub struct Layout {
     pub root_prefix: String,
     /// Text files [`parse_sequence`] needs, full names as in the listing
     /// (TUM: rgb.txt, depth.txt, groundtruth.txt if present; ICL-NUIM: the
-    /// associations file and the `*.gt.freiburg` if present; 7-Scenes: none).
+    /// associations file and the `*.gt.freiburg` if present; 7-Scenes: every
+    /// per-frame `.pose.txt`, the ground truth, each optional).
     pub index_files: Vec<String>,
 }
 
@@ -144,6 +163,10 @@ pub struct FrameEntry {
     pub depth: String,
     /// Per-frame pose file (7-Scenes `.pose.txt`), as in the listing.
     pub pose_file: Option<String>,
+    /// Why the frame cannot be read, known from the listing alone (an image
+    /// its index names is absent: a half-copied dataset). Reading the frame
+    /// returns this error, so it is skipped like an undecodable one.
+    pub missing: Option<DatasetError>,
 }
 
 /// A parsed sequence: camera, frames in time order, ground truth if known.
@@ -158,6 +181,9 @@ pub struct Sequence {
     /// Ground truth `(timestamp, world_from_camera)`, sorted by timestamp,
     /// metres; empty when the dataset folder has none.
     pub ground_truth: Vec<(f64, DAffine3)>,
+    /// Problems that did not stop the sequence (e.g. a 7-Scenes pose file that
+    /// could not be read: that frame has no ground truth).
+    pub warnings: Vec<DatasetError>,
 }
 
 /// Frames and ground truth `(timestamp, world_from_camera)` parsed from index texts.
@@ -253,10 +279,16 @@ pub fn detect_layout(file_names: &[String]) -> Result<Layout, DatasetError> {
         .iter()
         .any(|n| seven_scenes::colour_frame_number(base_name(n)).is_some())
     {
+        let mut index_files: Vec<String> = names
+            .iter()
+            .filter(|n| seven_scenes::pose_frame_number(base_name(n)).is_some())
+            .map(|n| (*n).to_owned())
+            .collect();
+        index_files.sort_unstable();
         return Ok(Layout {
             kind: DatasetKind::SevenScenes,
             root_prefix,
-            index_files: Vec::new(),
+            index_files,
         });
     }
     let mut sample: Vec<&str> = names.iter().take(5).copied().collect();
@@ -290,9 +322,14 @@ pub(crate) fn index_text<'a>(
 /// Builds the frame list (and the ground truth when its file is in the layout)
 /// from the listing and the texts of `layout.index_files` (keyed by those exact
 /// names). `name_hint` (e.g. the folder name) helps pick the TUM camera
-/// (`freiburg1`/`fr1`, ...; default fr3). Pure: no filesystem access. For
-/// 7-Scenes the ground truth is left empty: read each frame's `pose_file` and
-/// parse it with [`parse_pose_matrix`] (as [`Sequence::open`] does).
+/// (`freiburg1`/`fr1`, ...; default fr3). Pure: no filesystem access.
+///
+/// An image named by an index (or, for 7-Scenes, the other image of a frame)
+/// but absent from the listing does not refuse the sequence: that frame keeps
+/// its place with [`FrameEntry::missing`] set. Only when no frame has all its
+/// images is it an error ([`DatasetError::NoReadableFrame`]). 7-Scenes pose
+/// texts are optional: a frame whose `.pose.txt` text is not given has no
+/// ground truth.
 pub fn parse_sequence(
     layout: &Layout,
     file_names: &[String],
@@ -326,14 +363,21 @@ pub fn parse_sequence(
             let (frames, gt) = icl_nuim::parse(layout, &listing, index_texts)?;
             (CameraPreset::IclNuim, frames, gt)
         }
-        DatasetKind::SevenScenes => (
-            CameraPreset::SevenScenes,
-            seven_scenes::parse(&listing)?,
-            Vec::new(),
-        ),
+        DatasetKind::SevenScenes => {
+            let (frames, gt) = seven_scenes::parse(&listing, index_texts)?;
+            (CameraPreset::SevenScenes, frames, gt)
+        }
     };
     if frames.is_empty() {
         return Err(DatasetError::NoFrames);
+    }
+    if let Some(first) = frames.iter().find_map(|f| f.missing.as_ref()) {
+        if frames.iter().all(|f| f.missing.is_some()) {
+            return Err(DatasetError::NoReadableFrame {
+                frames: frames.len(),
+                first: Box::new(first.clone()),
+            });
+        }
     }
     ground_truth.sort_by(|a, b| a.0.total_cmp(&b.0));
     Ok(Sequence {
@@ -341,6 +385,19 @@ pub fn parse_sequence(
         preset,
         frames,
         ground_truth,
+        warnings: Vec::new(),
+    })
+}
+
+/// [`DatasetError::MissingFile`] for `path` when the listing lacks it.
+pub(crate) fn check_listed(
+    listing: &std::collections::HashSet<&str>,
+    path: &str,
+    listed_in: &str,
+) -> Option<DatasetError> {
+    (!listing.contains(path)).then(|| DatasetError::MissingFile {
+        path: path.to_owned(),
+        listed_in: listed_in.to_owned(),
     })
 }
 

@@ -1,13 +1,12 @@
-//! Native filesystem access: listing a dataset folder, opening a [`Sequence`]
-//! from it, and reading / decoding frames.
+//! Native filesystem access: listing a dataset folder (or an archive file),
+//! opening a [`Sequence`] from it, and reading / decoding frames.
 
 use std::collections::HashMap;
+use std::fs::File;
 use std::path::{Path, PathBuf};
 
-use super::{
-    detect_layout, parse_pose_matrix, parse_sequence, DatasetError, DatasetKind, FrameEntry,
-    Sequence,
-};
+use super::archive::{self, ArchiveReader};
+use super::{detect_layout, parse_sequence, DatasetError, DatasetKind, FrameEntry, Sequence};
 use crate::frame::{Channel, DepthSettings, FrameError, RgbdFrame};
 
 /// Lists `dir` recursively (3 levels: the sequence folder, an optional
@@ -61,14 +60,6 @@ pub fn list_files(dir: &Path) -> Result<Vec<String>, DatasetError> {
     Ok(out)
 }
 
-fn read_text(root: &Path, name: &str) -> Result<String, DatasetError> {
-    let path = root.join(name);
-    std::fs::read_to_string(&path).map_err(|e| DatasetError::Io {
-        path: path.display().to_string(),
-        message: e.to_string(),
-    })
-}
-
 fn read_bytes(root: &Path, name: &str) -> Result<Vec<u8>, DatasetError> {
     let path = root.join(name);
     std::fs::read(&path).map_err(|e| DatasetError::Io {
@@ -78,35 +69,131 @@ fn read_bytes(root: &Path, name: &str) -> Result<Vec<u8>, DatasetError> {
 }
 
 impl Sequence {
-    /// Opens a dataset folder natively: lists it, detects the layout, reads the
-    /// index files and (7-Scenes) every per-frame pose file. Frame paths are
-    /// relative to `dir`; pass `dir` as `root` to [`read_frame`].
-    pub fn open(dir: &Path) -> Result<Sequence, DatasetError> {
-        let names = list_files(dir)?;
-        let layout = detect_layout(&names)?;
-        let mut texts = HashMap::new();
-        for name in &layout.index_files {
-            texts.insert(name.clone(), read_text(dir, name)?);
+    /// Opens a dataset natively, a folder or an archive file (`.zip`, `.tar`,
+    /// `.tar.gz`/`.tgz`; see [`DatasetSource`]): lists it, detects the layout,
+    /// reads the index files (7-Scenes: the per-frame pose files). Frame paths
+    /// are relative to `path`; for a folder pass `path` as `root` to
+    /// [`read_frame`], for an archive read frames through a [`DatasetSource`].
+    pub fn open(path: &Path) -> Result<Sequence, DatasetError> {
+        DatasetSource::open(path)?.sequence()
+    }
+}
+
+/// Where a dataset's files are read from natively: a folder, or an archive
+/// file read in place (never unpacked to disk).
+pub enum DatasetSource {
+    /// A dataset folder.
+    Folder(PathBuf),
+    /// An archive file and its reader.
+    Archive {
+        /// The archive file.
+        path: PathBuf,
+        /// Its contents, read on demand.
+        reader: Box<ArchiveReader<File>>,
+    },
+}
+
+impl DatasetSource {
+    /// A folder, or a file read as an archive (its format sniffed from its
+    /// first bytes; errors name the file).
+    pub fn open(path: &Path) -> Result<Self, DatasetError> {
+        let io = |e: std::io::Error| DatasetError::Io {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        };
+        if std::fs::metadata(path).map_err(io)?.is_dir() {
+            return Ok(Self::Folder(path.to_path_buf()));
         }
-        // The folder's own name (e.g. `rgbd_dataset_freiburg1_xyz`) picks the TUM camera.
-        let absolute = dir.canonicalize().unwrap_or_else(|_| dir.to_path_buf());
-        let hint = absolute
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let mut sequence = parse_sequence(&layout, &names, &texts, Some(&hint))?;
-        if sequence.kind == DatasetKind::SevenScenes {
-            let mut gt = Vec::new();
-            for frame in &sequence.frames {
-                if let Some(pose_file) = &frame.pose_file {
-                    let pose = parse_pose_matrix(&read_text(dir, pose_file)?, pose_file)?;
-                    gt.push((frame.timestamp, pose));
-                }
+        let file = File::open(path).map_err(io)?;
+        let reader = ArchiveReader::new(file, &path.display().to_string())?;
+        Ok(Self::Archive {
+            path: path.to_path_buf(),
+            reader: Box::new(reader),
+        })
+    }
+
+    /// Every file name, '/' separated, relative to the folder (or the
+    /// archive's root).
+    pub fn names(&self) -> Result<Vec<String>, DatasetError> {
+        match self {
+            Self::Folder(dir) => list_files(dir),
+            Self::Archive { reader, .. } => Ok(reader.names().to_vec()),
+        }
+    }
+
+    /// The bytes of one file named as in [`Self::names`].
+    pub fn read(&mut self, name: &str) -> Result<Vec<u8>, DatasetError> {
+        match self {
+            Self::Folder(dir) => read_bytes(dir, name),
+            Self::Archive { reader, .. } => reader.read(name),
+        }
+    }
+
+    /// The folder's (or the archive's, without its extension) own name, e.g.
+    /// `rgbd_dataset_freiburg1_xyz`: it picks the TUM camera.
+    #[must_use]
+    pub fn name_hint(&self) -> String {
+        match self {
+            Self::Folder(dir) => {
+                let absolute = dir.canonicalize().unwrap_or_else(|_| dir.clone());
+                absolute
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default()
             }
-            sequence.ground_truth = gt;
+            Self::Archive { path, .. } => {
+                let name = path
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                archive::strip_archive_extension(&name).to_owned()
+            }
         }
+    }
+
+    /// Detects the layout and parses the sequence. An optional file that
+    /// cannot be read (a 7-Scenes pose file) becomes a warning, not an error.
+    pub fn sequence(&mut self) -> Result<Sequence, DatasetError> {
+        let names = self.names()?;
+        let layout = detect_layout(&names)?;
+        let optional = layout.kind == DatasetKind::SevenScenes;
+        let mut texts = HashMap::new();
+        let mut warnings = Vec::new();
+        for name in &layout.index_files {
+            match self.read(name).and_then(|bytes| text(name, bytes)) {
+                Ok(t) => {
+                    texts.insert(name.clone(), t);
+                }
+                Err(e) if optional => warnings.push(e),
+                Err(e) => return Err(e),
+            }
+        }
+        let mut sequence = parse_sequence(&layout, &names, &texts, Some(&self.name_hint()))?;
+        sequence.warnings = warnings;
         Ok(sequence)
     }
+
+    /// Reads and decodes one frame (its [`FrameEntry::missing`] error if it
+    /// has one). Depth in metres per `settings`.
+    pub fn read_frame(
+        &mut self,
+        entry: &FrameEntry,
+        settings: &DepthSettings,
+    ) -> Result<RgbdFrame, DatasetError> {
+        if let Some(e) = &entry.missing {
+            return Err(e.clone());
+        }
+        let colour = self.read(&entry.colour)?;
+        let depth = self.read(&entry.depth)?;
+        decode_frame(entry, &colour, &depth, settings)
+    }
+}
+
+fn text(name: &str, bytes: Vec<u8>) -> Result<String, DatasetError> {
+    String::from_utf8(bytes).map_err(|_| DatasetError::Io {
+        path: name.to_owned(),
+        message: "not UTF-8 text".to_owned(),
+    })
 }
 
 /// Decodes a frame's colour and depth bytes (read by any means, e.g. in the
@@ -151,6 +238,9 @@ pub fn read_frame(
     entry: &FrameEntry,
     settings: &DepthSettings,
 ) -> Result<RgbdFrame, DatasetError> {
+    if let Some(e) = &entry.missing {
+        return Err(e.clone());
+    }
     let colour = read_bytes(root, &entry.colour)?;
     let depth = read_bytes(root, &entry.depth)?;
     decode_frame(entry, &colour, &depth, settings)

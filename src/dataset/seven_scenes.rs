@@ -9,68 +9,113 @@
 //! timestamps increasing across sequences (one past the previous sequence's
 //! last timestamp); for a single sequence it is the frame number itself.
 
-use std::collections::{BTreeMap, HashSet};
+use std::collections::{BTreeMap, HashMap, HashSet};
 
 use glam::{DAffine3, DMat3, DVec3};
 
-use super::{base_name, DatasetError, FrameEntry};
+use super::{base_name, DatasetError, FrameEntry, Parsed};
 
-/// Frame number of a 7-Scenes colour image name (`frame-000123.color.png` or
-/// `.color.jpg`), `None` for any other name.
-#[must_use]
-pub fn colour_frame_number(file_name: &str) -> Option<u64> {
+/// Frame number in a 7-Scenes file name `frame-NNNNNN<suffix>`.
+fn frame_number(file_name: &str, suffixes: &[&str]) -> Option<u64> {
     let rest = file_name.strip_prefix("frame-")?;
-    let digits = rest
-        .strip_suffix(".color.png")
-        .or_else(|| rest.strip_suffix(".color.jpg"))?;
+    let digits = suffixes.iter().find_map(|s| rest.strip_suffix(s))?;
     if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
         return None;
     }
     digits.parse().ok()
 }
 
-/// Builds the frame list from the names alone; `pose_file` is set where the
-/// `.pose.txt` is listed. Ground truth is read later from those files.
-pub(crate) fn parse(listing: &HashSet<&str>) -> Result<Vec<FrameEntry>, DatasetError> {
-    // Sequence folder -> (frame number, colour path), sorted.
-    let mut sequences: BTreeMap<&str, Vec<(u64, &str)>> = BTreeMap::new();
+/// Frame number of a 7-Scenes colour image name (`frame-000123.color.png` or
+/// `.color.jpg`), `None` for any other name.
+#[must_use]
+pub fn colour_frame_number(file_name: &str) -> Option<u64> {
+    frame_number(file_name, &[".color.png", ".color.jpg"])
+}
+
+/// Frame number of a 7-Scenes pose file name (`frame-000123.pose.txt`).
+#[must_use]
+pub fn pose_frame_number(file_name: &str) -> Option<u64> {
+    frame_number(file_name, &[".pose.txt"])
+}
+
+/// Builds the frame list from the names and the ground truth from the pose
+/// texts given (each optional). A frame is any frame number with a colour or
+/// a depth image; when one of the two is absent the frame is kept with
+/// `missing` set (a half-copied folder).
+pub(crate) fn parse(
+    listing: &HashSet<&str>,
+    texts: &HashMap<String, String>,
+) -> Result<Parsed, DatasetError> {
+    // Sequence folder -> frame number -> (colour, depth) paths as listed.
+    type Images<'a> = (Option<&'a str>, Option<&'a str>);
+    let mut sequences: BTreeMap<&str, BTreeMap<u64, Images>> = BTreeMap::new();
     for &name in listing {
-        if let Some(number) = colour_frame_number(base_name(name)) {
-            let folder = &name[..name.len() - base_name(name).len()];
-            sequences.entry(folder).or_default().push((number, name));
+        let base = base_name(name);
+        let folder = &name[..name.len() - base.len()];
+        if let Some(number) = colour_frame_number(base) {
+            let slot = sequences
+                .entry(folder)
+                .or_default()
+                .entry(number)
+                .or_default();
+            slot.0 = Some(name);
+        } else if let Some(number) = frame_number(base, &[".depth.png"]) {
+            let slot = sequences
+                .entry(folder)
+                .or_default()
+                .entry(number)
+                .or_default();
+            slot.1 = Some(name);
         }
     }
     let mut frames = Vec::new();
+    let mut ground_truth = Vec::new();
     let mut offset = 0.0_f64;
-    for mut colours in sequences.into_values() {
-        colours.sort_unstable();
+    for numbers in sequences.into_values() {
         let mut last = offset;
-        for (number, colour) in colours {
-            let stem = colour
-                .strip_suffix(".color.png")
-                .or_else(|| colour.strip_suffix(".color.jpg"))
-                .unwrap_or(colour);
+        for (number, images) in numbers {
+            let stem = match images {
+                (Some(c), _) => c
+                    .strip_suffix(".color.png")
+                    .or_else(|| c.strip_suffix(".color.jpg"))
+                    .unwrap_or(c),
+                (None, Some(d)) => d.strip_suffix(".depth.png").unwrap_or(d),
+                (None, None) => continue,
+            };
+            let colour = images
+                .0
+                .map_or_else(|| format!("{stem}.color.png"), str::to_owned);
             let depth = format!("{stem}.depth.png");
-            if !listing.contains(depth.as_str()) {
-                return Err(DatasetError::MissingFile {
-                    path: depth,
-                    listed_in: format!("the 7-Scenes layout (beside {colour})"),
-                });
-            }
+            let beside = |other: &str| format!("the 7-Scenes layout (beside {other})");
+            let missing = match images {
+                (Some(c), None) => Some(DatasetError::MissingFile {
+                    path: depth.clone(),
+                    listed_in: beside(c),
+                }),
+                (None, Some(d)) => Some(DatasetError::MissingFile {
+                    path: colour.clone(),
+                    listed_in: beside(d),
+                }),
+                _ => None,
+            };
             let pose = format!("{stem}.pose.txt");
             let timestamp = offset + number as f64;
             last = timestamp;
+            if let Some(text) = texts.get(&pose) {
+                ground_truth.push((timestamp, parse_pose_matrix(text, &pose)?));
+            }
             frames.push(FrameEntry {
                 index: frames.len(),
                 timestamp,
-                colour: colour.to_owned(),
+                colour,
                 depth,
                 pose_file: listing.contains(pose.as_str()).then_some(pose),
+                missing,
             });
         }
         offset = last + 1.0;
     }
-    Ok(frames)
+    Ok((frames, ground_truth))
 }
 
 /// Parses a 7-Scenes `.pose.txt`: a 4x4 camera-to-world matrix (metres), 4
@@ -162,8 +207,10 @@ mod tests {
         let layout = detect_layout(&names).expect("7-Scenes layout");
         assert_eq!(layout.kind, DatasetKind::SevenScenes);
         assert_eq!(layout.root_prefix, "chess/");
-        assert!(layout.index_files.is_empty());
+        assert_eq!(layout.index_files.len(), 4, "{:?}", layout.index_files);
+        assert_eq!(layout.index_files[0], "chess/seq-01/frame-000000.pose.txt");
         let seq = parse_sequence(&layout, &names, &HashMap::new(), None).expect("parses");
+        assert!(seq.ground_truth.is_empty(), "pose texts not given");
         assert_eq!(seq.preset, CameraPreset::SevenScenes);
         assert_eq!(seq.frames.len(), 6);
         assert_eq!(seq.frames[0].colour, "chess/seq-01/frame-000000.color.png");
@@ -176,6 +223,31 @@ mod tests {
         assert_eq!(
             seq.frames[2].pose_file.as_deref(),
             Some("chess/seq-01/frame-000002.pose.txt")
+        );
+        // With the pose texts: ground truth at the frames' timestamps.
+        let mut texts = HashMap::new();
+        texts.insert(
+            "chess/seq-01/frame-000002.pose.txt".to_owned(),
+            "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n".to_owned(),
+        );
+        texts.insert(
+            "chess/seq-02/frame-000000.pose.txt".to_owned(),
+            "1 0 0 0\n0 1 0 2\n0 0 1 0\n0 0 0 1\n".to_owned(),
+        );
+        let seq = parse_sequence(&layout, &names, &texts, None).expect("parses");
+        assert_eq!(seq.ground_truth.len(), 2);
+        assert_eq!(seq.ground_truth[0].0, 2.0);
+        assert_eq!(seq.ground_truth[0].1.translation.x, 0.5);
+        assert_eq!(seq.ground_truth[1].0, 3.0);
+        assert_eq!(seq.ground_truth[1].1.translation.y, 2.0);
+        texts.insert(
+            "chess/seq-01/frame-000000.pose.txt".to_owned(),
+            "1 0 0\n".to_owned(),
+        );
+        let err = parse_sequence(&layout, &names, &texts, None).expect_err("malformed pose");
+        assert!(
+            matches!(&err, DatasetError::MalformedLine { file, .. } if file == "chess/seq-01/frame-000000.pose.txt"),
+            "{err:?}"
         );
     }
 
@@ -193,7 +265,29 @@ mod tests {
         assert_eq!(seq.frames[0].timestamp, 7.0);
         let err =
             parse_sequence(&layout, &names[..1], &HashMap::new(), None).expect_err("no depth");
-        assert!(matches!(err, DatasetError::MissingFile { .. }), "{err:?}");
+        assert!(
+            matches!(err, DatasetError::NoReadableFrame { frames: 1, .. }),
+            "{err:?}"
+        );
+        assert!(
+            err.to_string()
+                .contains("seq-01/frame-000007.depth.png is missing"),
+            "{err}"
+        );
+        // Half-copied: a frame with only its depth, one with only its colour.
+        let mut half = names.clone();
+        half.push("seq-01/frame-000008.depth.png".to_owned());
+        half.push("seq-01/frame-000009.color.png".to_owned());
+        let seq = parse_sequence(&layout, &half, &HashMap::new(), None).expect("parses");
+        assert_eq!(seq.frames.len(), 3);
+        assert_eq!(seq.frames[0].missing, None);
+        assert_eq!(seq.frames[1].colour, "seq-01/frame-000008.color.png");
+        assert!(
+            matches!(&seq.frames[1].missing, Some(DatasetError::MissingFile { path, .. }) if path == "seq-01/frame-000008.color.png")
+        );
+        assert!(
+            matches!(&seq.frames[2].missing, Some(DatasetError::MissingFile { path, .. }) if path == "seq-01/frame-000009.depth.png")
+        );
     }
 
     #[test]

@@ -9,7 +9,9 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::{base_name, index_text, trajectory, DatasetError, FrameEntry, Layout, Parsed};
+use super::{
+    base_name, check_listed, index_text, trajectory, DatasetError, FrameEntry, Layout, Parsed,
+};
 use crate::camera::CameraPreset;
 
 /// Largest colour-depth time difference accepted when associating, seconds.
@@ -136,20 +138,15 @@ pub(crate) fn parse(
     for (i, j) in associate_timestamps(&rgb_t, &depth_t, MAX_ASSOCIATION_DT_S) {
         let colour = format!("{}{}", layout.root_prefix, rgb[i].1);
         let depth_path = format!("{}{}", layout.root_prefix, depth[j].1);
-        for (path, list) in [(&colour, rgb_name), (&depth_path, depth_name)] {
-            if !listing.contains(path.as_str()) {
-                return Err(DatasetError::MissingFile {
-                    path: path.clone(),
-                    listed_in: list.to_owned(),
-                });
-            }
-        }
+        let missing = check_listed(listing, &colour, rgb_name)
+            .or_else(|| check_listed(listing, &depth_path, depth_name));
         frames.push(FrameEntry {
             index: frames.len(),
             timestamp: rgb[i].0,
             colour,
             depth: depth_path,
             pose_file: None,
+            missing,
         });
     }
     let ground_truth = match find(layout, "groundtruth.txt") {
@@ -269,16 +266,44 @@ mod tests {
     }
 
     #[test]
-    fn missing_image_is_reported() {
-        let names = listing(&["rgb.txt", "depth.txt", "rgb/1.png"]);
+    fn missing_image_skips_its_frame_and_no_readable_frame_is_an_error() {
+        let names = listing(&[
+            "rgb.txt",
+            "depth.txt",
+            "rgb/1.png",
+            "rgb/2.png",
+            "depth/2.png",
+        ]);
         let layout = detect_layout(&names).expect("TUM layout");
         let mut texts = HashMap::new();
-        texts.insert("rgb.txt".to_owned(), "1 rgb/1.png\n".to_owned());
-        texts.insert("depth.txt".to_owned(), "1 depth/1.png\n".to_owned());
-        let err = parse_sequence(&layout, &names, &texts, None).expect_err("missing depth");
+        texts.insert(
+            "rgb.txt".to_owned(),
+            "1 rgb/1.png\n2 rgb/2.png\n".to_owned(),
+        );
+        texts.insert(
+            "depth.txt".to_owned(),
+            "1 depth/1.png\n2 depth/2.png\n".to_owned(),
+        );
+        let seq = parse_sequence(&layout, &names, &texts, None).expect("one frame readable");
+        assert_eq!(seq.frames.len(), 2);
+        assert_eq!(
+            seq.frames[0].missing,
+            Some(DatasetError::MissingFile {
+                path: "depth/1.png".into(),
+                listed_in: "depth.txt".into()
+            })
+        );
+        assert_eq!(seq.frames[1].missing, None);
+
+        let err = parse_sequence(&layout, &names[..3], &texts, None).expect_err("none readable");
         assert!(
-            matches!(&err, DatasetError::MissingFile { path, listed_in } if path == "depth/1.png" && listed_in == "depth.txt"),
+            matches!(&err, DatasetError::NoReadableFrame { frames: 2, first } if matches!(&**first, DatasetError::MissingFile { path, listed_in } if path == "depth/1.png" && listed_in == "depth.txt")),
             "{err:?}"
+        );
+        assert!(
+            err.to_string()
+                .contains("depth/1.png is missing (listed in depth.txt)"),
+            "{err}"
         );
         texts.insert("depth.txt".to_owned(), "5 depth/1.png\n".to_owned());
         assert_eq!(

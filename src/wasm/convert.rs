@@ -86,6 +86,8 @@ export interface Layout {
 
 export interface SequenceFrame {
   index: number; timestamp: number; colour: string; depth: string; poseFile: string | null;
+  /** Why the frame cannot be read (an image its index lists is absent), or null. */
+  missing: string | null;
 }
 
 export interface Sequence {

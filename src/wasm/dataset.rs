@@ -36,10 +36,14 @@ pub fn detect_layout(
 
 /// `parseSequence(fileNames, indexTexts, nameHint)`: the frame list and the
 /// ground truth. `indexTexts` maps each of `detectLayout(...).indexFiles` to
-/// its text. Returns `{ kind, preset, frames: [{index, timestamp, colour,
-/// depth, poseFile}], groundTruth: [[t, tx, ty, tz, qx, qy, qz, qw], ...],
-/// groundTruthTum }` (paths as in `fileNames`; `groundTruthTum` is the ground
-/// truth as TUM text, `''` when there is none).
+/// its text (7-Scenes: the per-frame `.pose.txt` files, each optional: a
+/// frame whose pose text is not given has no ground truth). Returns `{ kind,
+/// preset, frames: [{index, timestamp, colour, depth, poseFile, missing}],
+/// groundTruth: [[t, tx, ty, tz, qx, qy, qz, qw], ...], groundTruthTum }`
+/// (paths as in `fileNames`; `missing`: null, or the message naming an image
+/// the index lists but `fileNames` lacks: skip that frame; `groundTruthTum`
+/// is the ground truth as TUM text, `''` when there is none). Throws when no
+/// frame has all its images.
 #[wasm_bindgen(js_name = parseSequence, unchecked_return_type = "Sequence")]
 pub fn parse_sequence(
     #[wasm_bindgen(js_name = "fileNames", unchecked_param_type = "string[]")] file_names: JsValue,
@@ -69,7 +73,8 @@ pub fn parse_sequence(
                 "indexTexts[{name:?}] must be the file's text (a string)"
             )));
         }
-        // Absent: parse_sequence reports the missing file by name.
+        // Absent: parse_sequence reports a missing index file by name (a
+        // missing 7-Scenes pose file only leaves its frame without ground truth).
     }
     let seq = dataset::parse_sequence(&layout, &names, &texts, name_hint.as_deref())
         .map_err(|e| JsError::new(&e.to_string()))?;
@@ -88,6 +93,12 @@ pub fn parse_sequence(
                     f.pose_file
                         .as_deref()
                         .map_or(JsValue::NULL, JsValue::from_str),
+                ),
+                (
+                    "missing",
+                    f.missing
+                        .as_ref()
+                        .map_or(JsValue::NULL, |e| JsValue::from_str(&e.to_string())),
                 ),
             ])
             .into()

@@ -6,6 +6,7 @@
 //!
 //! - [`slam`]: the `Slam` class (frames in, reports and zero-copy surfel views out).
 //! - [`dataset`]: `detectLayout`, `parseSequence`, `ateTum` (the CLI's parsers).
+//! - [`archive`]: the `ArchiveReader` class (datasets in .zip / .tar / .tar.gz).
 //! - [`flow`]: the `OpticalFlow` class (Lucas-Kanade tracks for the page's overlay).
 //! - [`convert`]: JS object <-> config / report conversions, with errors that
 //!   name the offending field.
@@ -14,6 +15,7 @@
 //! panic would be a bug, and the panic hook installed at start makes it at
 //! least readable in the console.
 
+pub mod archive;
 pub mod convert;
 pub mod dataset;
 pub mod flow;
@@ -21,6 +23,7 @@ pub mod slam;
 
 use wasm_bindgen::prelude::*;
 
+pub use archive::ArchiveReader;
 pub use dataset::{ate_tum, detect_layout, parse_sequence};
 pub use flow::OpticalFlow;
 pub use slam::Slam;

@@ -1,7 +1,7 @@
 // The page on the bad inputs not covered by upload.test.mjs (which does the
 // 8-bit depth, corrupt colour and not-a-dataset cases): truncated depth, RGB
-// depth, colour/depth size mismatch, a frame of another size, a file listed
-// in an index but missing, a malformed ground-truth line, an empty folder,
+// depth, colour/depth size mismatch, a frame of another size, every frame
+// missing a file listed in an index, a malformed ground-truth line, an empty folder,
 // absurd intrinsics and a zero depth scale. Each must be shown on the page
 // naming the file or setting; the map and the page survive.
 import { test } from 'node:test';
@@ -28,7 +28,8 @@ test('every bad input gets a message naming the file or setting; the page surviv
   write(clip.depth[4], encodePng(320, 240, 1, 16, 5000));
 
   const missing = makeTumClip(SAMPLE, 3, 'rgbd_dataset_freiburg3_half_copied');
-  fs.rmSync(path.join(missing.dir, missing.depth[2]));
+  // Every depth image gone: no frame can run (one gone only skips its frame: datasets.test.mjs).
+  for (const d of missing.depth) fs.rmSync(path.join(missing.dir, d));
   const badGt = makeTumClip(SAMPLE, 3, 'rgbd_dataset_freiburg3_bad_gt');
   const gtLines = fs.readFileSync(path.join(SAMPLE, 'groundtruth.txt'), 'utf8').split('\n');
   gtLines.splice(6, 0, '1341841873.5 1.0 2.0 oops 0 0 0 1');
@@ -64,7 +65,7 @@ test('every bad input gets a message naming the file or setting; the page surviv
 
     // Bad folders: the message names the problem; the loaded sequence and its map stay.
     const folderCases = [
-      ['file listed in an index is missing', missing.dir, new RegExp(`${base(missing.depth[2]).replace('.', '\\.')} is missing \\(listed in .*depth\\.txt\\)`)],
+      ['every frame misses a file listed in an index', missing.dir, new RegExp(`none of the 3 frames listed can be read: .*${base(missing.depth[0]).replace('.', '\\.')} is missing \\(listed in .*depth\\.txt\\)`)],
       ['malformed ground-truth line', badGt.dir, /groundtruth\.txt, line 7: .*oops/],
       ['empty folder', empty, /empty/],
     ];

@@ -108,7 +108,12 @@ test('bad frames and settings throw a clear Error; the Slam keeps working', { sk
   expectThrow('empty folder', () => m.detectLayout([]), /the folder is empty/);
   expectThrow('folder in no known layout', () => m.detectLayout(['holiday_photos/beach.jpg', 'holiday_photos/notes.txt']), /unrecognised dataset layout.*holiday_photos\/beach\.jpg/);
   const missing = names.filter((n) => n !== `teddy/${depthRows[1].split(/\s+/)[1]}`);
-  expectThrow('file listed in an index is missing', () => m.parseSequence(missing, texts, 'teddy'), /teddy\/depth\/\S+\.png is missing \(listed in teddy\/depth\.txt\)/);
+  // A file listed but missing skips its frame (half-copied datasets); no frame left is an error.
+  const halfCopied = m.parseSequence(missing, texts, 'teddy');
+  assert.match(halfCopied.frames[1].missing, /teddy\/depth\/\S+\.png is missing \(listed in teddy\/depth\.txt\)/);
+  assert.equal(halfCopied.frames[0].missing, null);
+  const noDepth = names.filter((n) => !n.startsWith('teddy/depth/'));
+  expectThrow('every frame misses a file listed in an index', () => m.parseSequence(noDepth, texts, 'teddy'), /none of the 3 frames listed can be read: teddy\/depth\/\S+\.png is missing \(listed in teddy\/depth\.txt\)/);
   const badGt = { ...texts, 'teddy/groundtruth.txt': texts['teddy/groundtruth.txt'] + '\n1341841873.5 1.0 2.0 oops 0 0 0 1' };
   expectThrow('malformed ground-truth line', () => m.parseSequence(names, badGt, 'teddy'), /groundtruth\.txt, line 21: .*oops/);
   t.diagnostic(`wasm API answers:\n${answers.join('\n')}`);

@@ -1,0 +1,153 @@
+// Datasets as people have them, on the page: an archive picked (.tgz, .zip;
+// read in place by the wasm ArchiveReader), a 7-Scenes folder (ground truth
+// from its per-frame pose files: ATE and the ground-truth path shown), and a
+// half-copied folder (a missing image skips its frame, by name). All built
+// from the bundled clip, so no ../shared is needed.
+import { test } from 'node:test';
+import assert from 'node:assert/strict';
+import fs from 'node:fs';
+import path from 'node:path';
+import { SHARED_DATA, startBrowser, openPage, waitForStatus, foreignRequests, saveScreenshot, skipUnlessReady } from './helpers.mjs';
+import { CLIP, makeSevenScenes, tempDir, tumSubset, writeArchive } from '../node/datasets.mjs';
+
+const FRAMES = 12;
+
+test('an archive picked plays like the folder', { timeout: 300_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const tmp = tempDir('surfel-slam-page-archive-');
+  const folder = tumSubset(CLIP, FRAMES, path.join(tmp, 'clip'));
+  const env = await startBrowser();
+  try {
+    const { page, requests, consoleErrors } = await openPage(env, '/?sample=0');
+    await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
+    for (const ext of ['tgz', 'zip']) {
+      const archive = writeArchive(folder, 'rgbd_dataset_freiburg3_clip', tmp, ext);
+      await page.locator('#archive-input').setInputFiles(archive);
+      const status = await waitForStatus(
+        page,
+        (s) => s.sequence === 'rgbd_dataset_freiburg3_clip' && s.done && !s.playing && s.framesProcessed + s.framesFailed >= FRAMES,
+        { timeoutMs: 120_000, log: (m) => t.diagnostic(m) },
+      );
+      t.diagnostic(
+        `${ext}: ${status.framesProcessed}/${status.frameCount} frames, ${status.surfels} surfels, ` +
+          `ATE ${status.ate === null ? '-' : (status.ate * 100).toFixed(2) + ' cm'}, errors ${JSON.stringify(status.errors)}`,
+      );
+      assert.equal(status.error, null, `${ext}: ${status.error}`);
+      assert.equal(status.sequenceKind, 'tum');
+      assert.equal(status.frameCount, FRAMES);
+      assert.equal(status.framesProcessed, FRAMES);
+      assert.ok(Number.isFinite(status.ate) && status.ate < 0.03, `${ext}: ATE ${status.ate}`);
+      if (ext === 'tgz') saveScreenshot('archive-tgz-page.png', await page.screenshot());
+    }
+    // A damaged archive: a message naming it; the previous sequence stays loaded.
+    const bytes = fs.readFileSync(path.join(tmp, 'rgbd_dataset_freiburg3_clip.tgz'));
+    const broken = path.join(tmp, 'broken.tgz');
+    fs.writeFileSync(broken, bytes.subarray(0, bytes.length >> 1));
+    await page.locator('#archive-input').setInputFiles(broken);
+    const status = await waitForStatus(page, (s) => /broken\.tgz/.test(s.error ?? ''), { timeoutMs: 60_000 });
+    t.diagnostic(`truncated archive: ${status.error}`);
+    assert.match(status.error ?? '', /broken\.tgz.*(corrupt|truncated)/);
+    assert.equal(status.sequence, 'rgbd_dataset_freiburg3_clip', 'the previous sequence stays loaded');
+    assert.deepEqual(foreignRequests(requests, env.origin), []);
+    assert.deepEqual(consoleErrors.filter((e) => /panicked|unreachable/.test(e)), []);
+  } finally {
+    await env.close();
+    fs.rmSync(tmp, { recursive: true, force: true });
+  }
+});
+
+test('the whole teddy sequence plays from a .tgz picked', { timeout: 600_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const teddy = path.join(SHARED_DATA, 'tum_fr3_teddy');
+  if (!fs.existsSync(teddy)) {
+    if (process.env.CI === 'true') throw new Error(`${teddy} is required when CI=true`);
+    return t.skip(`${teddy} is absent (needs ../shared/data beside the checkout)`);
+  }
+  const tmp = tempDir('surfel-slam-page-teddy-');
+  const archive = writeArchive(teddy, 'rgbd_dataset_freiburg3_teddy', tmp, 'tgz');
+  const env = await startBrowser();
+  try {
+    const { page } = await openPage(env, '/?sample=0');
+    await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
+    const t0 = Date.now();
+    await page.locator('#archive-input').setInputFiles(archive);
+    await waitForStatus(page, (s) => s.sequence === 'rgbd_dataset_freiburg3_teddy' && s.framesProcessed >= 1, { timeoutMs: 120_000 });
+    const firstFrameS = (Date.now() - t0) / 1000;
+    const status = await waitForStatus(page, (s) => s.done && !s.playing, { timeoutMs: 500_000, log: (m) => t.diagnostic(m) });
+    t.diagnostic(
+      `teddy.tgz (${(fs.statSync(archive).size / 2 ** 20).toFixed(0)} MB) on the page: first frame after ${firstFrameS.toFixed(1)} s, ` +
+        `${status.framesProcessed}/${status.frameCount} frames at ${status.fpsAverage} fps, ATE ${(status.ate * 100).toFixed(3)} cm, module ${status.module}`,
+    );
+    assert.equal(status.error, null, status.error);
+    assert.equal(status.framesProcessed, status.frameCount);
+    assert.ok(status.frameCount > 150);
+    // The CLI gives 0.71 cm on the folder and on the archive.
+    assert.ok(status.ate < 0.01, `ATE ${status.ate} m`);
+  } finally {
+    await env.close();
+    fs.rmSync(tmp, { recursive: true, force: true });
+  }
+});
+
+test('a 7-Scenes folder shows its ground truth and ATE', { timeout: 300_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const tmp = tempDir('surfel-slam-page-7scenes-');
+  const { dir } = makeSevenScenes(CLIP, FRAMES, tmp);
+  const env = await startBrowser();
+  try {
+    const { page } = await openPage(env, '/?sample=0');
+    await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
+    await page.locator('#folder-input').setInputFiles(dir);
+    const status = await waitForStatus(page, (s) => s.sequenceKind === '7-scenes' && s.done && !s.playing, {
+      timeoutMs: 120_000,
+      log: (m) => t.diagnostic(m),
+    });
+    await page.waitForTimeout(300);
+    saveScreenshot('seven-scenes-page.png', await page.screenshot());
+    const info = await page.locator('#sequence-info').textContent();
+    t.diagnostic(`${info}; ATE ${status.ate === null ? '-' : (status.ate * 100).toFixed(2) + ' cm'}`);
+    assert.equal(status.error, null, status.error);
+    assert.equal(status.framesProcessed, FRAMES);
+    assert.match(info, new RegExp(`ground truth ${FRAMES} poses`));
+    assert.ok(Number.isFinite(status.ate) && status.ate < 0.05, `ATE ${status.ate}`);
+  } finally {
+    await env.close();
+    fs.rmSync(tmp, { recursive: true, force: true });
+  }
+});
+
+test('a half-copied folder skips the frames whose images are missing', { timeout: 300_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const tmp = tempDir('surfel-slam-page-half-');
+  const dir = tumSubset(CLIP, FRAMES, path.join(tmp, 'rgbd_dataset_freiburg3_half'));
+  const colours = fs
+    .readFileSync(path.join(dir, 'rgb.txt'), 'utf8')
+    .split('\n')
+    .filter((l) => l.trim() && !l.startsWith('#'))
+    .map((l) => l.split(/\s+/)[1]);
+  const gone = [colours[3], colours[10]];
+  for (const c of gone) fs.rmSync(path.join(dir, c));
+  const env = await startBrowser();
+  try {
+    const { page } = await openPage(env, '/?sample=0');
+    await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
+    await page.locator('#folder-input').setInputFiles(dir);
+    const status = await waitForStatus(page, (s) => s.sequence === 'rgbd_dataset_freiburg3_half' && s.done && !s.playing, {
+      timeoutMs: 120_000,
+    });
+    t.diagnostic(`half-copied: ${status.framesProcessed} processed, ${status.framesFailed} skipped: ${JSON.stringify(status.errors)}`);
+    assert.equal(status.frameCount, FRAMES);
+    assert.equal(status.framesFailed, gone.length);
+    assert.equal(status.framesProcessed, FRAMES - gone.length);
+    for (const c of gone) {
+      assert.ok(
+        status.errors.some((e) => e.includes(c) && e.includes('is missing (listed in rgbd_dataset_freiburg3_half/rgb.txt)')),
+        `names ${c}`,
+      );
+    }
+    assert.ok(Number.isFinite(status.ate), 'ATE over the frames that ran');
+  } finally {
+    await env.close();
+    fs.rmSync(tmp, { recursive: true, force: true });
+  }
+});

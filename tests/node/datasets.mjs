@@ -1,0 +1,262 @@
+// Dataset fixtures built from the bundled clip (in the repo, always present),
+// shared by the Node and browser tests: archives of a folder (.tar, .tar.gz,
+// .zip, written here with node:zlib, no archiver dependency), and a small
+// 7-Scenes-layout folder (frame-NNNNNN.color.png / .depth.png / .pose.txt)
+// made from TUM frames and their ground truth.
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import zlib from 'node:zlib';
+import { fileURLToPath } from 'node:url';
+
+export const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '../..');
+export const CLIP = path.join(ROOT, 'www/sample/tum_fr3_teddy_clip');
+
+/** Every file under `dir`, '/' separated, relative, sorted. */
+export function listTree(dir, rel = '') {
+  const out = [];
+  for (const e of fs.readdirSync(path.join(dir, rel), { withFileTypes: true })) {
+    const child = rel ? `${rel}/${e.name}` : e.name;
+    if (e.isDirectory()) out.push(...listTree(dir, child));
+    else out.push(child);
+  }
+  return out.sort();
+}
+
+// ---- archives -------------------------------------------------------------------
+
+const CRC_TABLE = Array.from({ length: 256 }, (_, n) => {
+  let c = n;
+  for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
+  return c >>> 0;
+});
+function crc32(buf) {
+  let c = 0xffffffff;
+  for (const b of buf) c = CRC_TABLE[(c ^ b) & 0xff] ^ (c >>> 8);
+  return (c ^ 0xffffffff) >>> 0;
+}
+
+/** A ustar archive of `files` ([name, Buffer]). */
+export function tarBytes(files) {
+  const blocks = [];
+  for (const [name, data] of files) {
+    const h = Buffer.alloc(512);
+    if (Buffer.byteLength(name) > 100) throw new Error(`name too long for this writer: ${name}`);
+    h.write(name, 0, 'utf8');
+    h.write('0000644\0', 100);
+    h.write('0000000\0', 108);
+    h.write('0000000\0', 116);
+    h.write(data.length.toString(8).padStart(11, '0') + '\0', 124);
+    h.write('00000000000\0', 136);
+    h.fill(' ', 148, 156);
+    h.write('0', 156);
+    h.write('ustar\0', 257);
+    h.write('00', 263);
+    let sum = 0;
+    for (const b of h) sum += b;
+    h.write(sum.toString(8).padStart(6, '0') + '\0 ', 148);
+    blocks.push(h, data, Buffer.alloc((512 - (data.length % 512)) % 512));
+  }
+  blocks.push(Buffer.alloc(1024));
+  return Buffer.concat(blocks);
+}
+
+/** A zip archive of `files` ([name, Buffer]), entries deflated. */
+export function zipBytes(files) {
+  const locals = [];
+  const central = [];
+  let offset = 0;
+  for (const [name, data] of files) {
+    const nameBuf = Buffer.from(name);
+    const packed = zlib.deflateRawSync(data, { level: 1 });
+    const crc = crc32(data);
+    const local = Buffer.alloc(30);
+    local.writeUInt32LE(0x04034b50, 0);
+    local.writeUInt16LE(20, 4);
+    local.writeUInt16LE(8, 8); // deflate
+    local.writeUInt32LE(crc, 14);
+    local.writeUInt32LE(packed.length, 18);
+    local.writeUInt32LE(data.length, 22);
+    local.writeUInt16LE(nameBuf.length, 26);
+    const entry = Buffer.alloc(46);
+    entry.writeUInt32LE(0x02014b50, 0);
+    entry.writeUInt16LE(20, 4);
+    entry.writeUInt16LE(20, 6);
+    entry.writeUInt16LE(8, 10);
+    entry.writeUInt32LE(crc, 16);
+    entry.writeUInt32LE(packed.length, 20);
+    entry.writeUInt32LE(data.length, 24);
+    entry.writeUInt16LE(nameBuf.length, 28);
+    entry.writeUInt32LE(offset, 42);
+    locals.push(local, nameBuf, packed);
+    central.push(entry, nameBuf);
+    offset += 30 + nameBuf.length + packed.length;
+  }
+  const dir = Buffer.concat(central);
+  const end = Buffer.alloc(22);
+  end.writeUInt32LE(0x06054b50, 0);
+  end.writeUInt16LE(files.length, 8);
+  end.writeUInt16LE(files.length, 10);
+  end.writeUInt32LE(dir.length, 12);
+  end.writeUInt32LE(offset, 16);
+  return Buffer.concat([...locals, dir, end]);
+}
+
+/** The files of `dir` as [`${top}/${relative}`, bytes]. */
+export function filesOf(dir, top) {
+  return listTree(dir).map((rel) => [`${top}/${rel}`, fs.readFileSync(path.join(dir, rel))]);
+}
+
+/** Writes `dir` as `<outDir>/<top>.<ext>` (ext 'tar', 'tgz', 'tar.gz' or 'zip'); returns its path. */
+export function writeArchive(dir, top, outDir, ext) {
+  const files = filesOf(dir, top);
+  const bytes = ext === 'zip' ? zipBytes(files) : ext === 'tar' ? tarBytes(files) : zlib.gzipSync(tarBytes(files), { level: 1 });
+  const out = path.join(outDir, `${top}.${ext}`);
+  fs.writeFileSync(out, bytes);
+  return out;
+}
+
+/** A TUM folder with the first `frames` frames of `src` (index files and ground truth). */
+export function tumSubset(src, frames, dst) {
+  for (const sub of ['rgb', 'depth']) fs.mkdirSync(path.join(dst, sub), { recursive: true });
+  for (const file of ['rgb.txt', 'depth.txt']) {
+    const lines = fs.readFileSync(path.join(src, file), 'utf8').split('\n');
+    const rows = lines.filter((l) => l.trim() && !l.startsWith('#')).slice(0, frames);
+    fs.writeFileSync(path.join(dst, file), [...lines.filter((l) => l.startsWith('#')), ...rows, ''].join('\n'));
+    for (const row of rows) {
+      const rel = row.split(/\s+/)[1];
+      fs.copyFileSync(path.join(src, rel), path.join(dst, rel));
+    }
+  }
+  fs.copyFileSync(path.join(src, 'groundtruth.txt'), path.join(dst, 'groundtruth.txt'));
+  return dst;
+}
+
+// ---- 16-bit PNG (depth) ---------------------------------------------------------
+
+/** Decodes a non-interlaced 16-bit greyscale PNG: { width, height, data: Uint16Array }. */
+export function decodeDepthPng(buffer) {
+  let offset = 8;
+  let width, height, bitDepth, colourType, interlace;
+  const idat = [];
+  while (offset < buffer.length) {
+    const length = buffer.readUInt32BE(offset);
+    const type = buffer.toString('latin1', offset + 4, offset + 8);
+    const body = buffer.subarray(offset + 8, offset + 8 + length);
+    if (type === 'IHDR') [width, height, bitDepth, colourType, interlace] = [body.readUInt32BE(0), body.readUInt32BE(4), body[8], body[9], body[12]];
+    else if (type === 'IDAT') idat.push(body);
+    else if (type === 'IEND') break;
+    offset += 12 + length;
+  }
+  if (bitDepth !== 16 || colourType !== 0 || interlace !== 0) throw new Error('expected a 16-bit greyscale PNG');
+  const raw = zlib.inflateSync(Buffer.concat(idat));
+  const bpp = 2;
+  const stride = width * bpp;
+  const out = Buffer.alloc(stride * height);
+  for (let y = 0; y < height; y++) {
+    const filter = raw[y * (stride + 1)];
+    const line = raw.subarray(y * (stride + 1) + 1, (y + 1) * (stride + 1));
+    const row = out.subarray(y * stride, (y + 1) * stride);
+    const prev = y > 0 ? out.subarray((y - 1) * stride, y * stride) : null;
+    for (let x = 0; x < stride; x++) {
+      const a = x >= bpp ? row[x - bpp] : 0;
+      const b = prev ? prev[x] : 0;
+      const c = prev && x >= bpp ? prev[x - bpp] : 0;
+      let v = line[x];
+      if (filter === 1) v += a;
+      else if (filter === 2) v += b;
+      else if (filter === 3) v += (a + b) >> 1;
+      else if (filter === 4) {
+        const p = a + b - c;
+        const pa = Math.abs(p - a), pb = Math.abs(p - b), pc = Math.abs(p - c);
+        v += pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
+      }
+      row[x] = v & 0xff;
+    }
+  }
+  const data = new Uint16Array(width * height);
+  for (let i = 0; i < data.length; i++) data[i] = out.readUInt16BE(2 * i);
+  return { width, height, data };
+}
+
+/** Encodes a 16-bit greyscale PNG. */
+export function encodeDepthPng(width, height, data) {
+  const raw = Buffer.alloc((2 * width + 1) * height);
+  for (let y = 0; y < height; y++) {
+    for (let x = 0; x < width; x++) raw.writeUInt16BE(data[y * width + x], y * (2 * width + 1) + 1 + 2 * x);
+  }
+  const chunk = (type, body) => {
+    const out = Buffer.alloc(12 + body.length);
+    out.writeUInt32BE(body.length, 0);
+    out.write(type, 4, 'latin1');
+    body.copy(out, 8);
+    out.writeUInt32BE(crc32(out.subarray(4, 8 + body.length)), 8 + body.length);
+    return out;
+  };
+  const ihdr = Buffer.alloc(13);
+  ihdr.writeUInt32BE(width, 0);
+  ihdr.writeUInt32BE(height, 4);
+  ihdr[8] = 16;
+  ihdr[9] = 0;
+  return Buffer.concat([Buffer.from([137, 80, 78, 71, 13, 10, 26, 10]), chunk('IHDR', ihdr), chunk('IDAT', zlib.deflateSync(raw)), chunk('IEND', Buffer.alloc(0))]);
+}
+
+// ---- 7-Scenes ----------------------------------------------------------------------
+
+const rows = (text) => text.split('\n').filter((l) => l.trim() && !l.startsWith('#')).map((l) => l.trim().split(/\s+/));
+
+/** 4x4 row-major camera-to-world matrix text from a TUM pose row [t, tx, ty, tz, qx, qy, qz, qw]. */
+function poseText(row) {
+  const [tx, ty, tz, qx, qy, qz, qw] = row.slice(1).map(Number);
+  const n = Math.hypot(qx, qy, qz, qw);
+  const [x, y, z, w] = [qx / n, qy / n, qz / n, qw / n];
+  const r = [
+    [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+    [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+    [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+  ];
+  const f = (v) => v.toExponential(12);
+  return [...r.map((row3, i) => [...row3, [tx, ty, tz][i]].map(f).join(' ')), '0 0 0 1'].join('\n') + '\n';
+}
+
+/**
+ * A 7-Scenes-layout folder `<parent>/<name>/seq-01/frame-NNNNNN.*` from the
+ * first `frames` frames of the TUM folder `src` that have a ground-truth pose
+ * (within 0.02 s): colour copied, depth rescaled to millimetres (7-Scenes'
+ * unit), pose from the ground truth. Returns { dir, poses: [[t, tx, ty, tz,
+ * qx, qy, qz, qw] per frame] }.
+ */
+export function makeSevenScenes(src, frames, parent, name = 'seven_scenes_teddy') {
+  const dir = path.join(parent, name);
+  const seqDir = path.join(dir, 'seq-01');
+  fs.mkdirSync(seqDir, { recursive: true });
+  const rgb = rows(fs.readFileSync(path.join(src, 'rgb.txt'), 'utf8'));
+  const depth = rows(fs.readFileSync(path.join(src, 'depth.txt'), 'utf8'));
+  const gt = rows(fs.readFileSync(path.join(src, 'groundtruth.txt'), 'utf8'));
+  const nearest = (list, t, maxDt) => {
+    let best = null;
+    for (const r of list) {
+      const dt = Math.abs(Number(r[0]) - t);
+      if (dt <= maxDt && (!best || dt < best.dt)) best = { dt, r };
+    }
+    return best?.r ?? null;
+  };
+  const poses = [];
+  for (const [t, colour] of rgb) {
+    if (poses.length === frames) break;
+    const pose = nearest(gt, Number(t), 0.02);
+    const d = nearest(depth, Number(t), 0.02);
+    if (!pose || !d) continue;
+    const stem = path.join(seqDir, `frame-${String(poses.length).padStart(6, '0')}`);
+    fs.copyFileSync(path.join(src, colour), `${stem}.color.png`);
+    const png = decodeDepthPng(fs.readFileSync(path.join(src, d[1])));
+    const mm = png.data.map((v) => Math.round(v / 5)); // 5000 units/m -> 1000 (mm)
+    fs.writeFileSync(`${stem}.depth.png`, encodeDepthPng(png.width, png.height, mm));
+    fs.writeFileSync(`${stem}.pose.txt`, poseText(pose));
+    poses.push(pose.map(Number));
+  }
+  return { dir, poses };
+}
+
+/** A fresh temporary directory. */
+export const tempDir = (prefix) => fs.mkdtempSync(path.join(os.tmpdir(), prefix));
