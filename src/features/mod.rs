@@ -13,7 +13,7 @@
 pub mod orb;
 pub mod rigid;
 
-use crate::flow::pyramid::GreyPyramid;
+use crate::flow::pyramid::GreyLevel;
 use crate::flow::{shi_tomasi_into, FlowConfig};
 use glam::{DAffine3, Vec2, Vec3};
 use orb::{orientation, smooth_into, SteeredPattern, PATCH_RADIUS};
@@ -85,7 +85,7 @@ impl Default for FeatureConfig {
             quality: 0.005,
             ratio: 0.85,
             max_distance: 80,
-            max_depth_spread: 0.03,
+            max_depth_spread: 0.04,
             ransac: RansacConfig::default(),
         }
     }
@@ -111,14 +111,35 @@ pub enum FeatureError {
     InvalidConfig(&'static str),
 }
 
+/// What detection needs of one frame, at the feature level: grey levels
+/// with gradients, and per pixel the mean 3D point of the full-resolution
+/// block it covers with that block's depth range. Cheap to make (one pass
+/// over the frame), so the pipeline keeps it for every fused frame and
+/// detects corners only when a sparse estimate is wanted.
+#[derive(Debug, Clone, Default)]
+pub struct PreparedFrame {
+    grey: GreyLevel,
+    /// Mean point of the block, camera frame, metres; `ZERO` when a pixel
+    /// of the block has no depth.
+    points: Vec<Vec3>,
+    /// Nearest and farthest depth of the block, metres.
+    depth_range: Vec<[f32; 2]>,
+}
+
+impl PreparedFrame {
+    /// Whether this holds a frame.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+}
+
 /// Detects and describes corners with depth; buffers reused between calls.
 #[derive(Debug, Clone)]
 pub struct FeatureExtractor {
     config: FeatureConfig,
     pattern: SteeredPattern,
-    grey: Vec<f32>,
-    pyramid: GreyPyramid,
-    level_grey: Vec<f32>,
+    prepared: PreparedFrame,
     smoothed: Vec<f32>,
     tmp: Vec<f32>,
     scores: Vec<f32>,
@@ -140,9 +161,7 @@ impl FeatureExtractor {
         Ok(Self {
             config,
             pattern: SteeredPattern::new(),
-            grey: Vec::new(),
-            pyramid: GreyPyramid::default(),
-            level_grey: Vec::new(),
+            prepared: PreparedFrame::default(),
             smoothed: Vec::new(),
             tmp: Vec::new(),
             scores: Vec::new(),
@@ -159,7 +178,7 @@ impl FeatureExtractor {
     /// Corners of the `width x height` RGB8 image `rgb` whose depth is
     /// known and smooth in `vertices` (back-projected points, camera frame,
     /// metres, `ZERO` where no depth, same size), written to `out`,
-    /// strongest first.
+    /// strongest first: [`Self::prepare`] then [`Self::detect`].
     pub fn extract(
         &mut self,
         rgb: &[u8],
@@ -168,7 +187,24 @@ impl FeatureExtractor {
         height: usize,
         out: &mut Vec<Feature>,
     ) -> Result<(), FeatureError> {
-        out.clear();
+        let mut prepared = std::mem::take(&mut self.prepared);
+        let result = self.prepare(rgb, vertices, width, height, &mut prepared);
+        if result.is_ok() {
+            self.detect(&prepared, out);
+        }
+        self.prepared = prepared;
+        result
+    }
+
+    /// Reduces a frame (as for [`Self::extract`]) to what detection needs.
+    pub fn prepare(
+        &self,
+        rgb: &[u8],
+        vertices: &[Vec3],
+        width: usize,
+        height: usize,
+        out: &mut PreparedFrame,
+    ) -> Result<(), FeatureError> {
         let n = width * height;
         for (got, expected) in [(rgb.len(), 3 * n), (vertices.len(), n)] {
             if got != expected {
@@ -180,50 +216,90 @@ impl FeatureExtractor {
                 });
             }
         }
-        let level = self.config.level;
-        let scale = 1usize << level;
-        let margin = PATCH_RADIUS + 2;
-        if (width >> level) <= 2 * margin + 1 || (height >> level) <= 2 * margin + 1 {
-            return Ok(());
+        let scale = 1usize << self.config.level;
+        let (w, h) = (width / scale, height / scale);
+        out.grey.width = w;
+        out.grey.height = h;
+        out.grey.pixels.resize(w * h, [0.0; 3]);
+        out.points.resize(w * h, Vec3::ZERO);
+        out.depth_range.resize(w * h, [0.0; 2]);
+        let inv = 1.0 / (scale * scale) as f32;
+        out.grey
+            .pixels
+            .par_chunks_mut(w.max(1))
+            .zip(out.points.par_chunks_mut(w.max(1)))
+            .zip(out.depth_range.par_chunks_mut(w.max(1)))
+            .enumerate()
+            .for_each(|(v, ((grey_row, point_row), range_row))| {
+                for u in 0..w {
+                    let (mut grey, mut sum, mut near, mut far) =
+                        (0.0f32, Vec3::ZERO, f32::MAX, 0.0f32);
+                    let mut holes = false;
+                    for y in v * scale..(v + 1) * scale {
+                        for x in u * scale..(u + 1) * scale {
+                            let i = y * width + x;
+                            let c = &rgb[3 * i..3 * i + 3];
+                            grey += 0.299 * f32::from(c[0])
+                                + 0.587 * f32::from(c[1])
+                                + 0.114 * f32::from(c[2]);
+                            let p = vertices[i];
+                            holes |= p.z <= 0.0;
+                            sum += p;
+                            near = near.min(p.z);
+                            far = far.max(p.z);
+                        }
+                    }
+                    grey_row[u] = [grey * inv, 0.0, 0.0];
+                    point_row[u] = if holes { Vec3::ZERO } else { sum * inv };
+                    range_row[u] = [near, far];
+                }
+            });
+        let pixels = &mut out.grey.pixels;
+        for v in 1..h.saturating_sub(1) {
+            for u in 1..w - 1 {
+                let i = v * w + u;
+                pixels[i][1] = 0.5 * (pixels[i + 1][0] - pixels[i - 1][0]);
+                pixels[i][2] = 0.5 * (pixels[i + w][0] - pixels[i - w][0]);
+            }
         }
-        self.grey.clear();
-        self.grey.extend(
-            rgb.chunks_exact(3).map(|p| {
-                0.299 * f32::from(p[0]) + 0.587 * f32::from(p[1]) + 0.114 * f32::from(p[2])
-            }),
-        );
-        self.pyramid.build(&self.grey, width, height, level + 1);
-        let top = self.pyramid.level(level);
-        let (w, h) = (top.width, top.height);
+        Ok(())
+    }
+
+    /// Corners of a prepared frame with smooth depth, strongest first, into `out`.
+    pub fn detect(&mut self, prepared: &PreparedFrame, out: &mut Vec<Feature>) {
+        out.clear();
+        let scale = 1usize << self.config.level;
+        let margin = PATCH_RADIUS + 2;
+        let level = &prepared.grey;
+        let (w, h) = (level.width, level.height);
+        if w <= 2 * margin + 1 || h <= 2 * margin + 1 || prepared.points.len() != w * h {
+            return;
+        }
         let flow_config = FlowConfig {
+            // Corners on depth edges or holes are dropped below.
             max_corners: self.config.max_corners * 2,
             min_distance_px: self.config.min_distance_px,
             quality: self.config.quality,
             ..FlowConfig::default()
         };
         shi_tomasi_into(
-            top,
+            level,
             &flow_config,
             margin,
             &mut self.scores,
             &mut self.corners,
         );
-        self.level_grey.clear();
-        self.level_grey.extend(top.pixels.iter().map(|p| p[0]));
-        smooth_into(&self.level_grey, w, h, &mut self.tmp, &mut self.smoothed);
-        let (pattern, grey, smoothed) = (&self.pattern, &self.level_grey, &self.smoothed);
+        self.tmp.clear();
+        self.tmp.extend(level.pixels.iter().map(|p| p[0]));
+        let grey = std::mem::take(&mut self.tmp);
+        let mut scratch = Vec::new();
+        smooth_into(&grey, w, h, &mut scratch, &mut self.smoothed);
+        let (pattern, smoothed) = (&self.pattern, &self.smoothed);
         let spread = self.config.max_depth_spread;
         let lifted = self.corners.par_iter().filter_map(|c| {
             let (u, v) = (c.x as usize, c.y as usize);
-            let point = lift(
-                vertices,
-                width,
-                height,
-                (u * scale, v * scale),
-                scale,
-                spread,
-            )?;
-            let angle = orientation(grey, w, (u, v));
+            let point = lift(prepared, (u, v), spread)?;
+            let angle = orientation(&grey, w, (u, v));
             Some(Feature {
                 // Level pixel centres sit at (2u + 0.5) in the finer image.
                 pixel: Vec2::new(c.x, c.y) * scale as f32 + 0.5 * (scale as f32 - 1.0),
@@ -234,45 +310,33 @@ impl FeatureExtractor {
         });
         out.par_extend(lifted);
         out.truncate(self.config.max_corners);
-        Ok(())
+        self.tmp = grey;
     }
 }
 
-/// The mean point of the `scale x scale` full-resolution block at `(x0, y0)`,
-/// when every pixel of the block and its one-pixel ring has depth within
-/// `spread` (relative) of the block's mean.
-fn lift(
-    vertices: &[Vec3],
-    width: usize,
-    height: usize,
-    (x0, y0): (usize, usize),
-    scale: usize,
-    spread: f32,
-) -> Option<Vec3> {
-    if x0 == 0 || y0 == 0 || x0 + scale >= width || y0 + scale >= height {
+/// The point of feature-level pixel `(u, v)` when the depth of its own
+/// block and the mean depths of its 8 neighbours all lie within `spread`
+/// (relative) of its own depth: a corner on a depth edge has no one depth.
+fn lift(prepared: &PreparedFrame, (u, v): (usize, usize), spread: f32) -> Option<Vec3> {
+    let w = prepared.grey.width;
+    let point = prepared.points[v * w + u];
+    if point.z <= 0.0 || u == 0 || v == 0 || u + 1 >= w || v + 1 >= prepared.grey.height {
         return None;
     }
-    let mut sum = Vec3::ZERO;
-    for y in y0..y0 + scale {
-        for x in x0..x0 + scale {
-            let p = vertices[y * width + x];
-            if p.z <= 0.0 {
-                return None;
-            }
-            sum += p;
-        }
+    let limit = spread * point.z;
+    let [near, far] = prepared.depth_range[v * w + u];
+    if far - near > limit {
+        return None;
     }
-    let mean = sum / (scale * scale) as f32;
-    let limit = spread * mean.z;
-    for y in y0 - 1..=y0 + scale {
-        for x in x0 - 1..=x0 + scale {
-            let z = vertices[y * width + x].z;
-            if z <= 0.0 || (z - mean.z).abs() > limit {
+    for y in v - 1..=v + 1 {
+        for x in u - 1..=u + 1 {
+            let z = prepared.points[y * w + x].z;
+            if z <= 0.0 || (z - point.z).abs() > limit {
                 return None;
             }
         }
     }
-    Some(mean)
+    Some(point)
 }
 
 /// Matches `a` against `b`: pairs `(i, j)` where `b[j]` is `a[i]`'s nearest
@@ -323,12 +387,17 @@ pub struct SparseEstimate {
 }
 
 /// Estimates the motion between a reference frame and later frames from
-/// matched features; keeps the reference's features and all buffers.
+/// matched features; keeps the reference (prepared, its corners detected
+/// once when first needed) and all buffers.
 #[derive(Debug, Clone)]
 pub struct SparseEstimator {
     extractor: FeatureExtractor,
+    reference_frame: PreparedFrame,
     reference: Vec<Feature>,
+    reference_detected: bool,
+    current_frame: PreparedFrame,
     current: Vec<Feature>,
+    current_detected: bool,
     matches: Vec<(usize, usize)>,
     a: Vec<Vec3>,
     b: Vec<Vec3>,
@@ -340,8 +409,12 @@ impl SparseEstimator {
     pub fn new(config: FeatureConfig) -> Result<Self, FeatureError> {
         Ok(Self {
             extractor: FeatureExtractor::new(config)?,
+            reference_frame: PreparedFrame::default(),
             reference: Vec::new(),
+            reference_detected: false,
+            current_frame: PreparedFrame::default(),
             current: Vec::new(),
+            current_detected: false,
             matches: Vec::new(),
             a: Vec::new(),
             b: Vec::new(),
@@ -349,8 +422,28 @@ impl SparseEstimator {
         })
     }
 
-    /// Extracts the features of a frame (see [`FeatureExtractor::extract`])
-    /// as the current frame.
+    /// Prepares a frame (see [`FeatureExtractor::extract`] for the
+    /// arguments) as the current frame; its corners are detected only when
+    /// an estimate asks for them.
+    pub fn prepare(
+        &mut self,
+        rgb: &[u8],
+        vertices: &[Vec3],
+        width: usize,
+        height: usize,
+    ) -> Result<(), FeatureError> {
+        self.current_detected = false;
+        self.current.clear();
+        let result = self
+            .extractor
+            .prepare(rgb, vertices, width, height, &mut self.current_frame);
+        if result.is_err() {
+            self.current_frame = PreparedFrame::default();
+        }
+        result
+    }
+
+    /// [`Self::prepare`] and detect at once; returns the number of features.
     pub fn extract(
         &mut self,
         rgb: &[u8],
@@ -358,38 +451,53 @@ impl SparseEstimator {
         width: usize,
         height: usize,
     ) -> Result<usize, FeatureError> {
-        self.extractor
-            .extract(rgb, vertices, width, height, &mut self.current)?;
-        Ok(self.current.len())
+        self.prepare(rgb, vertices, width, height)?;
+        Ok(self.current().len())
     }
 
     /// The current frame becomes the reference.
     pub fn current_becomes_reference(&mut self) {
+        std::mem::swap(&mut self.reference_frame, &mut self.current_frame);
         std::mem::swap(&mut self.reference, &mut self.current);
+        self.reference_detected = self.current_detected;
+        self.current_detected = false;
         self.current.clear();
     }
 
-    /// Forgets the reference.
+    /// Forgets both frames.
     pub fn clear(&mut self) {
+        for frame in [&mut self.reference_frame, &mut self.current_frame] {
+            frame.points.clear();
+        }
         self.reference.clear();
         self.current.clear();
+        self.reference_detected = false;
+        self.current_detected = false;
     }
 
-    /// Whether a reference frame with features is held.
+    /// Whether a reference frame is held.
     #[must_use]
     pub fn has_reference(&self) -> bool {
-        !self.reference.is_empty()
+        !self.reference_frame.is_empty()
     }
 
-    /// Features of the current frame.
-    #[must_use]
-    pub fn current(&self) -> &[Feature] {
+    /// Features of the current frame (detected now if not yet).
+    pub fn current(&mut self) -> &[Feature] {
+        if !self.current_detected {
+            self.extractor
+                .detect(&self.current_frame, &mut self.current);
+            self.current_detected = true;
+        }
         &self.current
     }
 
-    /// Features of the reference frame.
-    #[must_use]
-    pub fn reference(&self) -> &[Feature] {
+    /// Features of the reference frame (detected now if not yet).
+    pub fn reference(&mut self) -> &[Feature] {
+        if !self.reference_detected {
+            self.extractor
+                .detect(&self.reference_frame, &mut self.reference);
+            self.reference_detected = true;
+        }
         &self.reference
     }
 
@@ -397,6 +505,8 @@ impl SparseEstimator {
     /// too few matches agree on one.
     pub fn estimate(&mut self) -> Option<SparseEstimate> {
         let config = *self.extractor.config();
+        self.current();
+        self.reference();
         match_features(&self.reference, &self.current, &config, &mut self.matches);
         self.a.clear();
         self.b.clear();
