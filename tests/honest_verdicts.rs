@@ -4,7 +4,8 @@
 //!
 //! `SURFEL_VERDICT_DETAILS=1` prints every frame's checks with its true
 //! error (how the thresholds in `track::verify` were measured);
-//! `SURFEL_SPARSE_ALWAYS=1` runs the sparse estimate on every frame.
+//! `SURFEL_SPARSE_ALWAYS=1` runs the sparse estimate on every frame;
+//! `SURFEL_CONSTANT_VELOCITY=1` (or `0`) turns the constant-velocity start on (off).
 
 mod common;
 
@@ -52,6 +53,9 @@ fn run(
 ) -> Run {
     let mut config = config.clone();
     config.tracker.verify.sparse_always = env("SURFEL_SPARSE_ALWAYS");
+    if let Ok(v) = std::env::var("SURFEL_CONSTANT_VELOCITY") {
+        config.tracker.verify.constant_velocity = v == "1";
+    }
     let mut slam = Pipeline::new(config).expect("config");
     let reports: Vec<FrameReport> = sequence
         .frames
