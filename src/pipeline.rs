@@ -518,7 +518,7 @@ impl Pipeline {
             // there both dense runs slide to the same wrong place (the
             // synthetic room's wall-and-floor views, 14 cm).
             let landed = |pose: &DAffine3| {
-                verify.agree(pose, &sparse_pose)
+                verify.landed_near(pose, &sparse_pose)
                     || (first_clean
                         && first.conditioning >= RECOVERY_MIN_CONDITIONING
                         && verify.same_basin(pose, &first.world_from_camera))
