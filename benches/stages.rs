@@ -5,12 +5,13 @@
 //! `cargo bench --bench stages` (add `-- <name>` to run one group).
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
-use glam::DAffine3;
+use glam::{DAffine3, Vec3};
 use std::path::PathBuf;
 use surfel_slam::dataset::Sequence;
+use surfel_slam::features::{FeatureConfig, SparseEstimator};
 use surfel_slam::fusion::index_map::RigidF32;
 use surfel_slam::fusion::{DepthTiles, Integrator, Measured, Prediction};
-use surfel_slam::preprocess::{normals_into, FramePyramid};
+use surfel_slam::preprocess::{back_project_into, normals_into, FramePyramid};
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
 use surfel_slam::track::icp::icp_step;
 use surfel_slam::track::rgb::RgbWorkspace;
@@ -184,9 +185,60 @@ fn stages(c: &mut Criterion) {
     });
 }
 
+/// The sparse feature estimate (src/features): per-frame preparation, and
+/// on demand corner detection and description, matching and RANSAC between
+/// frames 5 apart.
+fn sparse(c: &mut Criterion) {
+    let (config, bytes) = frames();
+    let k = config.intrinsics;
+    let views: Vec<(Vec<u8>, Vec<Vec3>)> = [MAP_FRAMES - 5, MAP_FRAMES]
+        .iter()
+        .map(|&i| {
+            let (colour, depth) = &bytes[i];
+            let frame = RgbdFrame::from_png_bytes(colour, depth, &config.depth).expect("decodes");
+            let mut vertices = vec![Vec3::ZERO; k.pixel_count()];
+            back_project_into(&k, &frame.depth_m, &mut vertices);
+            (frame.rgb, vertices)
+        })
+        .collect();
+    let mut sparse = SparseEstimator::new(FeatureConfig::default()).expect("config");
+    let (rgb, vertices) = &views[0];
+    sparse
+        .prepare(rgb, vertices, k.width, k.height)
+        .expect("prepares");
+    sparse.current_becomes_reference();
+    let (rgb, vertices) = &views[1];
+    c.bench_function("sparse prepare (every frame)", |b| {
+        b.iter(|| {
+            sparse
+                .prepare(rgb, vertices, k.width, k.height)
+                .expect("prepares")
+        });
+    });
+    c.bench_function("sparse detect + describe (on demand)", |b| {
+        b.iter(|| {
+            sparse
+                .prepare(rgb, vertices, k.width, k.height)
+                .expect("prepares");
+            sparse.current().len()
+        });
+    });
+    c.bench_function(
+        "sparse estimate: prepare, detect, match, RANSAC (on demand)",
+        |b| {
+            b.iter(|| {
+                sparse
+                    .prepare(rgb, vertices, k.width, k.height)
+                    .expect("prepares");
+                sparse.estimate()
+            });
+        },
+    );
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(20);
-    targets = stages
+    targets = stages, sparse
 }
 criterion_main!(benches);

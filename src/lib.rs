@@ -10,6 +10,7 @@ pub mod camera;
 pub mod clock;
 pub mod dataset;
 pub mod eval;
+pub mod features;
 pub mod flow;
 pub mod frame;
 pub mod fusion;

@@ -10,7 +10,7 @@
 
 mod corners;
 mod lk;
-mod pyramid;
+pub(crate) mod pyramid;
 
 use glam::Vec2;
 use rayon::prelude::*;

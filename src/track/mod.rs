@@ -15,6 +15,7 @@
 
 pub mod icp;
 pub mod rgb;
+pub mod verify;
 
 use crate::fusion::index_map::RigidF32;
 use crate::fusion::Prediction;
@@ -23,6 +24,7 @@ use crate::se3;
 use glam::DAffine3;
 use icp::{icp_step, IcpGates};
 use rgb::{PhotometricConfig, RgbWorkspace};
+use verify::VerifyConfig;
 
 /// Which cost the tracker minimises.
 ///
@@ -134,6 +136,8 @@ pub struct TrackerConfig {
     pub max_translation_m: f64,
     /// Lost when the frame-to-frame motion exceeds this rotation, degrees.
     pub max_rotation_deg: f64,
+    /// Independent checks of the result and the sparse start (used by the pipeline).
+    pub verify: VerifyConfig,
 }
 
 impl Default for TrackerConfig {
@@ -158,6 +162,7 @@ impl Default for TrackerConfig {
             min_conditioning: 1e-5,
             max_translation_m: 0.30,
             max_rotation_deg: 30.0,
+            verify: VerifyConfig::default(),
         }
     }
 }
@@ -173,6 +178,9 @@ pub enum LostReason {
     IllConditioned,
     /// The estimated motion since the last frame is implausibly large.
     ImplausibleMotion,
+    /// The dense result disagrees with an independent check (the sparse
+    /// feature estimate, or points landing in the model's free space).
+    Inconsistent,
 }
 
 impl LostReason {
@@ -184,6 +192,7 @@ impl LostReason {
             Self::HighResidual => "high-residual",
             Self::IllConditioned => "ill-conditioned",
             Self::ImplausibleMotion => "implausible-motion",
+            Self::Inconsistent => "inconsistent",
         }
     }
 }
