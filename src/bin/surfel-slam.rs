@@ -15,7 +15,7 @@ use anyhow::{bail, Context, Result};
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use surfel_slam::dataset::{ply::write_ply, trajectory, DatasetSource, FrameEntry, Sequence};
 use surfel_slam::eval::ate;
