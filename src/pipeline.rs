@@ -362,7 +362,7 @@ impl Pipeline {
         self.last_good = None;
         self.frame_index = 0;
         self.counts = VerdictCounts::default();
-        self.prediction.valid = 0;
+        self.prediction.clear();
         self.decoded_was_pushed = false;
     }
 
