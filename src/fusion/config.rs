@@ -15,19 +15,13 @@ pub struct FusionConfig {
     pub stable_confidence: f32,
     /// Confidence from which a surfel is no longer moved by merges: it still
     /// wins its pixel (so no surfel is added there) and still absorbs
-    /// duplicates on its disk, but neither is averaged in. A merge moves a surfel of confidence `c` by at most
-    /// `1 / (c + 1)` of the measurement's offset, under 1 % here, and late in
-    /// a long run about half of all merges are into such surfels. Measured
-    /// with 100 against no limit: TUM fr3/teddy 0.714 vs 0.707 cm ATE over
-    /// its 193 frames and 0.963 vs 0.964 cm over 1500 played back and forth
-    /// (fusion 7.7 vs 8.4 ms per frame over the last 100); ICL-NUIM kt0
-    /// 0.012 cm both ways.
+    /// duplicates on its disk, but neither is averaged in. A merge moves a
+    /// surfel of confidence `c` by at most
+    /// `1 / (c + 1)` of the measurement's offset, under 1 % here
+    /// (`docs/performance.md#settled-confidence`).
     pub settled_confidence: f32,
-    /// Unstable surfels older than this many frames are removed. The
-    /// published ~20 was measured against 10 (with redundant surfels
-    /// absorbed): TUM fr3/teddy 0.79 vs 0.70 cm ATE over its 193 frames and
-    /// 1.14 vs 0.97 cm over 1500 played back and forth, with 472 k vs 346 k
-    /// surfels; ICL-NUIM kt0 0.012 cm both ways.
+    /// Unstable surfels older than this many frames are removed; 10 rather
+    /// than the published ~20 (`docs/performance.md#unstable-max-age`).
     pub unstable_max_age: u32,
     /// Removal runs every this many frames: removing compacts the arrays and
     /// shifts every later surfel, which a renderer must re-upload, so it is

@@ -429,9 +429,8 @@ impl<'a> Measure<'a> {
 /// surfel whose disk holds its centre into that surfel (Keller et al.
 /// 2013 merge such overlapping points) and marks it [`ABSORBED`].
 /// Without this, duplicates win the pixel now and then as the camera
-/// moves, become stable, and the map grows on every revisit (measured,
-/// TUM fr3/teddy played back and forth for 1500 frames: the stable
-/// surfels level off at about 0.42 M instead of growing past 1 M).
+/// moves, become stable, and the map grows on every revisit
+/// (`docs/performance.md#absorb-redundant`).
 fn absorb_redundant(
     chunks: &mut [ChunkUpdate],
     (best, pixels): (&[AtomicU64], &[u32]),
@@ -483,15 +482,7 @@ pub const ABSORBED: f32 = -1.0;
 /// gate with a compatible normal. Surfel centres jitter between pixels as
 /// the camera moves, so a pixel often holds no centre though its surface is
 /// mapped; adding a surfel there anyway grows the map to about three surfels
-/// per pixel footprint. Measured on TUM fr3/teddy and ICL-NUIM kt0:
-///
-/// | cover test | teddy surfels, ATE | ICL surfels, ATE |
-/// |---|---|---|
-/// | none | 1.03 M, 0.77 cm | 0.89 M, 0.012 cm |
-/// | 3-D distance < radius, normal gate | 0.82 M, 0.75 cm | 0.62 M, 0.012 cm |
-/// | in-plane distance < radius, normal gate or thin | 0.48 M, 0.75 cm | 0.38 M, 0.013 cm |
-///
-/// (the last with redundant surfels absorbed, see `absorb_redundant`).
+/// per pixel footprint (`docs/performance.md#covered-by-neighbour`).
 /// Most of the adds the normal gate let through came from noisy normals
 /// (teddy's fur) on a surface already mapped. The measurement is not merged
 /// into the neighbour, which would smear it along the surface.
