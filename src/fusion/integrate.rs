@@ -116,9 +116,9 @@ impl Integrator {
     /// Fuses the frame in `pyramid` seen from `world_from_camera` into `map`
     /// at index `frame`; `far_m` is the farthest depth the sensor measures.
     ///
-    /// Phases, in order: [`Self::reset_frame`], [`Self::cull`],
-    /// [`Self::associate`], [`Self::weigh`], [`Self::merge_winners`],
-    /// [`absorb_redundant`], [`Self::add_uncovered`].
+    /// Phases, in order (private methods, named for searching):
+    /// `reset_frame`, `cull`, `associate`, `weigh`, `merge_winners`,
+    /// `absorb_redundant`, `add_uncovered`.
     #[allow(clippy::too_many_arguments)]
     pub fn integrate(
         &mut self,
