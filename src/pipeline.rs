@@ -375,7 +375,7 @@ impl Pipeline {
         self.velocity = None;
         self.frame_index = 0;
         self.counts = VerdictCounts::default();
-        self.prediction.valid = 0;
+        self.prediction.clear();
         self.decoded_was_pushed = false;
     }
 

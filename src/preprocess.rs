@@ -22,8 +22,7 @@ pub struct PreprocessConfig {
     pub window_radius: usize,
     /// Bilateral taps every this many pixels across the window: 1 is the
     /// dense published filter; 2 (7x7 taps spread over 13x13) is 3.4x
-    /// cheaper for the same smoothing scale (measured on TUM fr3/teddy:
-    /// ATE 0.78 cm against 0.77 cm dense; 3 gives 0.95 cm).
+    /// cheaper for the same smoothing scale (`docs/performance.md#tap-stride`).
     pub tap_stride: usize,
     /// Number of pyramid levels (level 0 = full resolution).
     pub levels: usize,
@@ -337,9 +336,8 @@ impl BilateralRow<'_> {
 /// Weight of a neighbour of depth `d` (0 = invalid) for a pixel of depth
 /// `c`: `spatial * exp(-(d - c)^2 / (2 sigma^2))`, the exponential replaced by
 /// `(1 - x/16)^16`: close to it over the useful range, zero beyond x = 16,
-/// and cheap enough to vectorise. (A cheaper, wider `(1 - x/4)^2` kernel
-/// was measured: same on TUM fr3/teddy, but the noisy synthetic room's ATE
-/// went from 1.4 to 2.1 cm.)
+/// and cheap enough to vectorise (a cheaper kernel lost accuracy:
+/// `docs/performance.md#range-weight`).
 #[inline(always)]
 fn range_weight(d: f32, c: f32, spatial: f32, inv_two_sigma2: f32) -> f32 {
     let diff = d - c;

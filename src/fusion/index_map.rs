@@ -9,13 +9,8 @@
 //! a stale or noisy surfel in front of the surface would otherwise hide the
 //! surface's own surfels, and picking the nearest of several overlapping
 //! noisy surfels picks the one whose noise pulls it towards the camera
-//! (confidence is not correlated with that noise). Measured against the
-//! most confident surfel within the band behind the nearest projected one:
-//! TUM fr3/teddy 0.712 vs 0.714 cm ATE over its 193 frames and 0.864 vs
-//! 0.963 cm over 1500 played back and forth, ICL-NUIM kt0 0.012 cm both
-//! ways, and one pass over the surfels instead of two. A 2 cm band gave
-//! 1.13 cm over the 1500 frames; also dropping surfels more than the band
-//! in front of the measured point gave 0.81 cm over the 193.
+//! (confidence is not correlated with that noise). Measurements:
+//! `docs/performance.md#index-map`.
 
 use crate::camera::Intrinsics;
 use crate::fusion::SurfelMap;

@@ -18,7 +18,7 @@ use super::index_map::{project_to_pixels, RigidF32};
 use super::surfel_map::{ChunkMut, Surfel};
 use super::{FusionConfig, SurfelMap};
 use crate::camera::Intrinsics;
-use crate::preprocess::FramePyramid;
+use crate::preprocess::{FramePyramid, PyramidLevel};
 use glam::{DAffine3, Vec3};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -94,6 +94,17 @@ impl ChunkUpdate {
 /// Marks a surfel that is no pixel's candidate this frame.
 const NO_PIXEL: u32 = u32::MAX;
 
+/// The frame being fused, as every phase of [`Integrator::integrate`] reads it.
+struct FrameView<'a> {
+    /// Finest pyramid level: vertices and normals, camera frame, metres.
+    level0: &'a PyramidLevel,
+    /// Colour, RGB8 interleaved, row-major.
+    rgb: &'a [u8],
+    k: &'a Intrinsics,
+    camera_from_world: RigidF32,
+    world_from_camera: RigidF32,
+}
+
 impl Integrator {
     /// Farthest measured depth per tile of the last frame integrated, seen
     /// from its pose (empty before the first frame).
@@ -104,6 +115,10 @@ impl Integrator {
 
     /// Fuses the frame in `pyramid` seen from `world_from_camera` into `map`
     /// at index `frame`; `far_m` is the farthest depth the sensor measures.
+    ///
+    /// Phases, in order (private methods, named for searching):
+    /// `reset_frame`, `cull`, `associate`, `weigh`, `merge_winners`,
+    /// `absorb_redundant`, `add_uncovered`.
     #[allow(clippy::too_many_arguments)]
     pub fn integrate(
         &mut self,
@@ -120,9 +135,32 @@ impl Integrator {
             self.tiles.build(&[], k.width);
             return FusionStats::default();
         };
-        let camera_from_world = RigidF32::from_affine(&world_from_camera.inverse());
-        let world_from_camera_f = RigidF32::from_affine(world_from_camera);
-        let n = k.pixel_count();
+        let view = FrameView {
+            level0,
+            rgb: &pyramid.rgb,
+            k,
+            camera_from_world: RigidF32::from_affine(&world_from_camera.inverse()),
+            world_from_camera: RigidF32::from_affine(world_from_camera),
+        };
+        self.reset_frame(&view);
+        self.cull(map, &view, config, far_m);
+        self.associate(map, &view, config);
+        self.weigh(k, config);
+        let mut stats = FusionStats {
+            merged: self.merge_winners(map, &view, config),
+            ..FusionStats::default()
+        };
+        stats.absorbed =
+            absorb_redundant(&mut self.chunks, (&self.best, &self.pixels), map, config);
+        stats.visited = self.visible.iter().map(ExactSizeIterator::len).sum();
+        self.add_uncovered(map, &view, frame, config, &mut stats);
+        stats
+    }
+
+    /// Clears the per-pixel best candidates and builds the depth tiles of
+    /// the frame's measurements.
+    fn reset_frame(&mut self, view: &FrameView<'_>) {
+        let n = view.k.pixel_count();
         if self.best.len() != n {
             self.best = (0..n).map(|_| AtomicU64::new(0)).collect();
         } else {
@@ -130,14 +168,20 @@ impl Integrator {
             // exchange in threaded wasm (its atomics are sequentially consistent).
             self.best.par_iter_mut().for_each(|b| *b.get_mut() = 0);
         }
-        self.tiles.build(&level0.vertices, k.width);
+        self.tiles.build(&view.level0.vertices, view.k.width);
+    }
+
+    /// Keeps the map blocks in the view frustum and not wholly behind the
+    /// measurements (`self.visible`), and marks their chunks visible.
+    fn cull(&mut self, map: &SurfelMap, view: &FrameView<'_>, config: &FusionConfig, far_m: f32) {
+        let (k, camera_from_world) = (view.k, &view.camera_from_world);
         let tiles = &self.tiles;
         visible_blocks(
             map,
             k,
-            &camera_from_world,
+            camera_from_world,
             far_m + config.depth_gate_m,
-            |lo, hi| tiles.may_reach(k, &camera_from_world, (lo, hi), config.depth_gate_m),
+            |lo, hi| tiles.may_reach(k, camera_from_world, (lo, hi), config.depth_gate_m),
             &mut self.visible,
         );
         self.chunks
@@ -148,10 +192,16 @@ impl Integrator {
                 c.visible = true;
             }
         }
+    }
+
+    /// Finds each visible surfel's pixel and keeps it when the surfel passes
+    /// the depth and normal gates (`self.pixels`); per pixel the most
+    /// confident candidate wins (`self.best`, an atomic maximum).
+    fn associate(&mut self, map: &SurfelMap, view: &FrameView<'_>, config: &FusionConfig) {
         let (chunks, visible) = (&self.chunks, &self.visible);
         let cos_gate = config.normal_gate_deg.to_radians().cos();
         let best = &self.best;
-        let map_ref = &*map;
+        let (k, camera_from_world, level0) = (view.k, &view.camera_from_world, view.level0);
         // Each candidate surfel's pixel is kept for the merge pass.
         self.pixels.resize(map.len(), NO_PIXEL);
         self.pixels
@@ -166,8 +216,8 @@ impl Integrator {
                     let local = range.start - c * CHUNK..range.end - c * CHUNK;
                     project_to_pixels(
                         k,
-                        &camera_from_world,
-                        &map_ref.positions[range.clone()],
+                        camera_from_world,
+                        &map.positions[range.clone()],
                         &mut pixels[local],
                     );
                     for j in range.clone() {
@@ -177,29 +227,32 @@ impl Integrator {
                         }
                         let pixel = *slot as usize;
                         *slot = NO_PIXEL;
-                        if map_ref.confidences[j] < 0.0 {
+                        if map.confidences[j] < 0.0 {
                             continue;
                         }
                         // Recomputed rather than stored: the vectorised loop
                         // writes only the pixel, into the buffer the merges read.
-                        let z = camera_from_world.point(map_ref.positions[j]).z;
+                        let z = camera_from_world.point(map.positions[j]).z;
                         let p = level0.vertices[pixel];
                         let n = level0.normals[pixel];
                         if p.z <= 0.0 || n == Vec3::ZERO || (z - p.z).abs() > config.depth_gate_m {
                             continue;
                         }
-                        if camera_from_world.vector(map_ref.normals[j]).dot(n) < cos_gate {
+                        if camera_from_world.vector(map.normals[j]).dot(n) < cos_gate {
                             continue;
                         }
                         *slot = pixel as u32;
                         // Confidences are positive, so their bit patterns order like the values.
-                        let key = (u64::from(map_ref.confidences[j].max(0.0).to_bits()) << 32)
+                        let key = (u64::from(map.confidences[j].max(0.0).to_bits()) << 32)
                             | (j as u64 + 1);
                         best[pixel].fetch_max(key, Ordering::Relaxed);
                     }
                 }
             });
+    }
 
+    /// Fills the radial confidence weight per column and per row.
+    fn weigh(&mut self, k: &Intrinsics, config: &FusionConfig) {
         // gamma^2 = ((u - cx)^2 + (v - cy)^2) / |c|^2, so the weight
         // exp(-gamma^2 / (2 sigma^2)) is a product of a column and a row factor.
         let scale =
@@ -211,25 +264,20 @@ impl Integrator {
         self.weight_v.clear();
         self.weight_v
             .extend((0..k.height).map(|v| radial(v as f32 - k.cy)));
-        let (weight_u, weight_v) = (&self.weight_u, &self.weight_v);
-        let w = k.width;
-        let focal = k.focal_abs();
-        let measure = |i: usize| {
-            let p = level0.vertices[i];
-            let n_cam = level0.normals[i];
-            let radius = (std::f32::consts::SQRT_2 * p.z / focal / n_cam.z.abs().max(0.25))
-                .min(config.max_radius_m);
-            let c = &pyramid.rgb[3 * i..3 * i + 3];
-            Surfel {
-                position: world_from_camera_f.point(p),
-                normal: world_from_camera_f.vector(n_cam),
-                colour: [c[0], c[1], c[2], 255],
-                radius,
-                confidence: weight_u[i % w] * weight_v[i / w],
-            }
-        };
+    }
 
-        let (pixels, visible) = (&self.pixels, &self.visible);
+    /// Merges each pixel's winning surfel with the pixel's measurement (in
+    /// parallel over the chunks; settled surfels are left as they are),
+    /// collects the losers for [`absorb_redundant`], and grows the blocks'
+    /// boxes; returns the number of winners.
+    fn merge_winners(
+        &mut self,
+        map: &mut SurfelMap,
+        view: &FrameView<'_>,
+        config: &FusionConfig,
+    ) -> usize {
+        let measure = Measure::new(view, &self.weight_u, &self.weight_v, config);
+        let (best, pixels, visible) = (&self.best, &self.pixels, &self.visible);
         map.for_each_chunk_mut(&mut self.chunks, |mut chunk, update| {
             if !update.visible {
                 return;
@@ -249,29 +297,43 @@ impl Integrator {
                 if config.is_settled(chunk.confidences[local]) {
                     continue;
                 }
-                let p = merge(&mut chunk, local, &measure(pixel as usize));
+                let p = merge(&mut chunk, local, &measure.surfel(pixel as usize));
                 let block = local / BLOCK;
                 update.min[block] = update.min[block].min(p);
                 update.max[block] = update.max[block].max(p);
             }
         });
-        let mut stats = FusionStats::default();
+        let mut merged = 0;
         for (c, update) in self.chunks.iter().enumerate() {
             if update.merged > 0 {
                 for (b, (&lo, &hi)) in update.min.iter().zip(&update.max).enumerate() {
                     map.grow_bounds(c * CHUNK + b * BLOCK, lo, hi);
                 }
-                stats.merged += update.merged;
+                merged += update.merged;
             }
         }
-        stats.absorbed =
-            absorb_redundant(&mut self.chunks, (&self.best, &self.pixels), map, config);
-        stats.visited = self.visible.iter().map(ExactSizeIterator::len).sum();
+        merged
+    }
+
+    /// Adds a surfel for each measured pixel without a candidate whose
+    /// surface no neighbouring pixel's surfel covers, up to the budget;
+    /// counts `covered`, `added` and `skipped` into `stats`.
+    fn add_uncovered(
+        &mut self,
+        map: &mut SurfelMap,
+        view: &FrameView<'_>,
+        frame: u32,
+        config: &FusionConfig,
+        stats: &mut FusionStats,
+    ) {
+        let measure = Measure::new(view, &self.weight_u, &self.weight_v, config);
+        let cos_gate = config.normal_gate_deg.to_radians().cos();
+        let (level0, best) = (view.level0, &self.best);
+        let (w, h) = (view.k.width, view.k.height);
         // Which pixels add a surfel is decided in parallel (the map is only
         // read); the surfels are appended in pixel order.
-        let h = k.height;
         let map_ref = &*map;
-        self.adds.resize(n, false);
+        self.adds.resize(view.k.pixel_count(), false);
         stats.covered = self
             .adds
             .par_chunks_mut(w)
@@ -289,7 +351,7 @@ impl Integrator {
                             map_ref,
                             (u, v),
                             (w, h),
-                            &measure(i),
+                            &measure.surfel(i),
                             (cos_gate, config.depth_gate_m),
                         )
                     {
@@ -305,7 +367,7 @@ impl Integrator {
                 stats.skipped += 1;
                 continue;
             }
-            let m = measure(i);
+            let m = measure.surfel(i);
             map.push(
                 m.position,
                 m.normal,
@@ -316,7 +378,50 @@ impl Integrator {
             );
             stats.added += 1;
         }
-        stats
+    }
+}
+
+/// Turns a pixel's measurement into a surfel in the world frame.
+struct Measure<'a> {
+    view: &'a FrameView<'a>,
+    weight_u: &'a [f32],
+    weight_v: &'a [f32],
+    focal: f32,
+    max_radius_m: f32,
+}
+
+impl<'a> Measure<'a> {
+    fn new(
+        view: &'a FrameView<'a>,
+        weight_u: &'a [f32],
+        weight_v: &'a [f32],
+        config: &FusionConfig,
+    ) -> Self {
+        Self {
+            view,
+            weight_u,
+            weight_v,
+            focal: view.k.focal_abs(),
+            max_radius_m: config.max_radius_m,
+        }
+    }
+
+    /// The surfel pixel `i` (row-major) measures: world frame, metres, with
+    /// the radial confidence weight.
+    fn surfel(&self, i: usize) -> Surfel {
+        let w = self.view.k.width;
+        let p = self.view.level0.vertices[i];
+        let n_cam = self.view.level0.normals[i];
+        let radius = (std::f32::consts::SQRT_2 * p.z / self.focal / n_cam.z.abs().max(0.25))
+            .min(self.max_radius_m);
+        let c = &self.view.rgb[3 * i..3 * i + 3];
+        Surfel {
+            position: self.view.world_from_camera.point(p),
+            normal: self.view.world_from_camera.vector(n_cam),
+            colour: [c[0], c[1], c[2], 255],
+            radius,
+            confidence: self.weight_u[i % w] * self.weight_v[i / w],
+        }
     }
 }
 
@@ -324,9 +429,8 @@ impl Integrator {
 /// surfel whose disk holds its centre into that surfel (Keller et al.
 /// 2013 merge such overlapping points) and marks it [`ABSORBED`].
 /// Without this, duplicates win the pixel now and then as the camera
-/// moves, become stable, and the map grows on every revisit (measured,
-/// TUM fr3/teddy played back and forth for 1500 frames: the stable
-/// surfels level off at about 0.42 M instead of growing past 1 M).
+/// moves, become stable, and the map grows on every revisit
+/// (`docs/performance.md#absorb-redundant`).
 fn absorb_redundant(
     chunks: &mut [ChunkUpdate],
     (best, pixels): (&[AtomicU64], &[u32]),
@@ -378,15 +482,7 @@ pub const ABSORBED: f32 = -1.0;
 /// gate with a compatible normal. Surfel centres jitter between pixels as
 /// the camera moves, so a pixel often holds no centre though its surface is
 /// mapped; adding a surfel there anyway grows the map to about three surfels
-/// per pixel footprint. Measured on TUM fr3/teddy and ICL-NUIM kt0:
-///
-/// | cover test | teddy surfels, ATE | ICL surfels, ATE |
-/// |---|---|---|
-/// | none | 1.03 M, 0.77 cm | 0.89 M, 0.012 cm |
-/// | 3-D distance < radius, normal gate | 0.82 M, 0.75 cm | 0.62 M, 0.012 cm |
-/// | in-plane distance < radius, normal gate or thin | 0.48 M, 0.75 cm | 0.38 M, 0.013 cm |
-///
-/// (the last with redundant surfels absorbed, see `absorb_redundant`).
+/// per pixel footprint (`docs/performance.md#covered-by-neighbour`).
 /// Most of the adds the normal gate let through came from noisy normals
 /// (teddy's fur) on a surface already mapped. The measurement is not merged
 /// into the neighbour, which would smear it along the surface.

@@ -10,6 +10,7 @@
 
 pub mod chunk_bounds;
 mod cleanup;
+mod config;
 mod depth_tiles;
 pub mod frustum;
 pub mod index_map;
@@ -19,84 +20,9 @@ mod spatial_order;
 mod surfel_map;
 
 pub use cleanup::remove_unstable;
+pub use config::FusionConfig;
 pub use depth_tiles::DepthTiles;
 pub use integrate::{FusionStats, Integrator, ABSORBED};
 pub use predict::{Measured, Prediction};
 pub use spatial_order::SpatialOrder;
 pub use surfel_map::{Surfel, SurfelMap};
-
-/// Settings of the fusion stage.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FusionConfig {
-    /// Largest depth difference (m, along the camera's z) for a merge.
-    pub depth_gate_m: f32,
-    /// Largest angle between normals for a merge, degrees.
-    pub normal_gate_deg: f32,
-    /// Sigma of the radial confidence weight `exp(-gamma^2 / (2 sigma^2))`.
-    pub confidence_sigma: f32,
-    /// Confidence at which a surfel becomes stable (used for prediction).
-    pub stable_confidence: f32,
-    /// Confidence from which a surfel is no longer moved by merges: it still
-    /// wins its pixel (so no surfel is added there) and still absorbs
-    /// duplicates on its disk, but neither is averaged in. A merge moves a surfel of confidence `c` by at most
-    /// `1 / (c + 1)` of the measurement's offset, under 1 % here, and late in
-    /// a long run about half of all merges are into such surfels. Measured
-    /// with 100 against no limit: TUM fr3/teddy 0.714 vs 0.707 cm ATE over
-    /// its 193 frames and 0.963 vs 0.964 cm over 1500 played back and forth
-    /// (fusion 7.7 vs 8.4 ms per frame over the last 100); ICL-NUIM kt0
-    /// 0.012 cm both ways.
-    pub settled_confidence: f32,
-    /// Unstable surfels older than this many frames are removed. The
-    /// published ~20 was measured against 10 (with redundant surfels
-    /// absorbed): TUM fr3/teddy 0.79 vs 0.70 cm ATE over its 193 frames and
-    /// 1.14 vs 0.97 cm over 1500 played back and forth, with 472 k vs 346 k
-    /// surfels; ICL-NUIM kt0 0.012 cm both ways.
-    pub unstable_max_age: u32,
-    /// Removal runs every this many frames: removing compacts the arrays and
-    /// shifts every later surfel, which a renderer must re-upload, so it is
-    /// batched (measured: same ATE on ICL-NUIM kt0 and TUM fr3/teddy as 1).
-    pub cleanup_interval_frames: u32,
-    /// During the first frames all surfels are predicted, stable or not.
-    pub warmup_frames: u32,
-    /// Cap on a surfel's radius, metres.
-    pub max_radius_m: f32,
-    /// Surfel budget. When the map holds this many, the pipeline first
-    /// evicts stale unstable surfels, then new surfels are skipped (counted
-    /// in `FusionStats::skipped`) while merges go on. 40 bytes per surfel.
-    pub max_surfels: usize,
-}
-
-impl Default for FusionConfig {
-    fn default() -> Self {
-        Self {
-            depth_gate_m: 0.05,
-            normal_gate_deg: 20.0,
-            confidence_sigma: 0.6,
-            stable_confidence: 5.0,
-            settled_confidence: 100.0,
-            unstable_max_age: 10,
-            cleanup_interval_frames: 10,
-            warmup_frames: 10,
-            max_radius_m: 0.05,
-            max_surfels: 4_000_000,
-        }
-    }
-}
-
-impl FusionConfig {
-    /// Whether surfel `i` takes part in the prediction at frame `frame`.
-    #[inline]
-    #[must_use]
-    pub fn predicts(&self, map: &SurfelMap, i: usize, frame: u32) -> bool {
-        let c = map.confidences[i];
-        c >= self.stable_confidence || (frame < self.warmup_frames && c >= 0.0)
-    }
-
-    /// Whether a surfel of this confidence is settled: merges and absorbed
-    /// duplicates no longer move it (see `settled_confidence`).
-    #[inline]
-    #[must_use]
-    pub fn is_settled(&self, confidence: f32) -> bool {
-        confidence >= self.settled_confidence
-    }
-}

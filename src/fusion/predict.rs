@@ -52,6 +52,16 @@ impl Prediction {
         }
     }
 
+    /// Empties the prediction (no pixel holds a surfel), keeping its
+    /// buffers: after the map is cleared, what it showed no longer exists.
+    pub fn clear(&mut self) {
+        self.vertices.fill(Vec3::ZERO);
+        self.normals.fill(Vec3::ZERO);
+        self.intensity.fill(0.0);
+        self.intrinsics = None;
+        self.valid = 0;
+    }
+
     /// Renders the surfels selected by `include` into the view
     /// `world_from_camera` up to depth `far_m`: per pixel that `measured`
     /// holds, the most confident surfel lying at most `depth_band_m` behind

@@ -5,17 +5,11 @@
 //! first view that is coherent (a block is a band of image rows), but once
 //! the scene is mapped each frame adds a few thousand surfels scattered over
 //! the image, and a block of them spans the whole view: its box then passes
-//! every test and the map is visited whole (measured on TUM fr3/teddy played
-//! for 1500 frames, every 4096-surfel chunk was visited on every frame).
+//! every test and the map is visited whole (`docs/performance.md#spatial-order`).
 //! Sorting the surfels that settle at each cleanup along a Morton (Z-order)
 //! curve of their positions makes consecutive surfels neighbours in space;
 //! merging the sorted runs now and then (see [`SpatialOrder`]) keeps blocks
 //! compact as the map grows.
-//! On a full turn of the synthetic room (`tests/synthetic_slam.rs`), fusion
-//! visited 111 k of a 223 k-surfel map at the end without the sort and 68 k
-//! of 221 k with it; on real sequences it also makes the map's memory
-//! accesses more local (fusion 8.7 -> 8.2 ms, prediction 3.2 -> 2.8 ms on
-//! TUM fr3/teddy).
 
 use super::surfel_map::ReorderScratch;
 use super::SurfelMap;
@@ -46,12 +40,7 @@ const HALF_SPAN: i32 = 1 << 20;
 /// while the newer is at least half as long as the older: every surfel is
 /// re-sorted O(log n) times in all, and most of the map lies in a few long
 /// runs whose blocks are compact. Runs stop merging at `MAX_RUN` surfels,
-/// which bounds the sort's buffers. Measured on TUM fr3/teddy played back
-/// and forth for 1500 frames: late in the run fusion visits 425 k surfels
-/// instead of 470 k (more blocks lie wholly behind the measured surface;
-/// 413 k without the bound, 394 k when every cleanup re-sorts all settled
-/// surfels), and sorting costs 1.1 ms per cleanup on average, 6 ms at most
-/// (10 ms per cleanup when re-sorting all settled surfels).
+/// which bounds the sort's buffers (`docs/performance.md#spatial-order`).
 #[derive(Debug, Default)]
 pub struct SpatialOrder {
     keys: Vec<(u64, u32)>,

@@ -1,195 +1,8 @@
-//! One RGB-D frame: PNG decoding from bytes, depth in metres, validation.
-//!
-//! Depth images are 16-bit integers with `depth_scale` units per metre
-//! (5000 for TUM and ICL-NUIM, 1000 for 7-Scenes); 0 (and 65535 for 7-Scenes)
-//! means "no measurement". After decoding, depth is in metres with 0 = invalid;
-//! values outside the configured range become 0. Never NaN.
+//! PNG (and JPEG colour) decoding into reused buffers.
 
 use image::{ColorType, ImageDecoder, ImageFormat};
-use thiserror::Error;
 
-/// Which image of a frame an error is about.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Channel {
-    /// The colour image.
-    Colour,
-    /// The depth image.
-    Depth,
-}
-
-impl std::fmt::Display for Channel {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Channel::Colour => "colour",
-            Channel::Depth => "depth",
-        })
-    }
-}
-
-/// Why a frame could not be built.
-#[derive(Debug, Error, Clone, PartialEq)]
-pub enum FrameError {
-    /// The bytes are not a decodable image.
-    #[error("{channel} image could not be decoded: {message}")]
-    Decode {
-        /// Colour or depth.
-        channel: Channel,
-        /// The decoder's message.
-        message: String,
-    },
-    /// The depth image is not single-channel 16-bit.
-    #[error("depth image must be a 16-bit single-channel PNG, found {found} (an 8-bit preview or colour image cannot hold depth)")]
-    DepthNot16Bit {
-        /// Description of the pixel format found.
-        found: String,
-    },
-    /// Colour and depth sizes differ.
-    #[error("colour is {colour_width}x{colour_height} but depth is {depth_width}x{depth_height}")]
-    SizeMismatch {
-        /// Colour width, pixels.
-        colour_width: usize,
-        /// Colour height, pixels.
-        colour_height: usize,
-        /// Depth width, pixels.
-        depth_width: usize,
-        /// Depth height, pixels.
-        depth_height: usize,
-    },
-    /// The frame size differs from the expected (sequence or intrinsics) size.
-    #[error("frame is {width}x{height} but the sequence is {expected_width}x{expected_height}")]
-    UnexpectedSize {
-        /// Frame width, pixels.
-        width: usize,
-        /// Frame height, pixels.
-        height: usize,
-        /// Expected width, pixels.
-        expected_width: usize,
-        /// Expected height, pixels.
-        expected_height: usize,
-    },
-    /// A raw buffer's length does not match width x height x channels.
-    #[error("{channel} buffer has {found} values, expected {expected} for the given size")]
-    BufferLength {
-        /// Colour or depth.
-        channel: Channel,
-        /// Values found.
-        found: usize,
-        /// Values expected.
-        expected: usize,
-    },
-    /// The image is empty or implausibly large.
-    #[error("image size {width}x{height} is not supported (1..=16384 per side, at most 16.7 million pixels)")]
-    BadDimensions {
-        /// Width, pixels.
-        width: usize,
-        /// Height, pixels.
-        height: usize,
-    },
-    /// A decoded depth value is NaN, infinite or negative (only possible in a
-    /// frame built by hand: decoding never produces one).
-    #[error("depth must be a finite number of metres >= 0 (0 = no measurement); pixel {pixel} holds {value}")]
-    InvalidDepth {
-        /// Row-major pixel index.
-        pixel: usize,
-        /// The offending value, metres.
-        value: f32,
-    },
-    /// The depth conversion settings are unusable.
-    #[error("invalid depth settings: {0}")]
-    DepthSettings(String),
-}
-
-/// How raw 16-bit depth values become metres.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DepthSettings {
-    /// Raw units per metre (5000 TUM/ICL-NUIM, 1000 7-Scenes).
-    pub scale: f32,
-    /// Nearest valid depth, metres.
-    pub min_m: f32,
-    /// Farthest valid depth, metres.
-    pub max_m: f32,
-    /// A raw value meaning "invalid" besides 0 (7-Scenes: 65535).
-    pub invalid_raw: Option<u16>,
-}
-
-impl Default for DepthSettings {
-    fn default() -> Self {
-        Self {
-            scale: 5000.0,
-            min_m: 0.3,
-            max_m: 4.0,
-            invalid_raw: None,
-        }
-    }
-}
-
-impl DepthSettings {
-    /// Checks scale > 0 and 0 <= min < max, all finite.
-    pub fn validate(&self) -> Result<(), FrameError> {
-        if !(self.scale.is_finite() && self.scale > 0.0) {
-            return Err(FrameError::DepthSettings(format!(
-                "depth scale must be a positive number of units per metre, got {}",
-                self.scale
-            )));
-        }
-        if !(self.min_m.is_finite() && self.max_m.is_finite() && self.min_m >= 0.0)
-            || self.min_m >= self.max_m
-        {
-            return Err(FrameError::DepthSettings(format!(
-                "depth range must satisfy 0 <= min < max, got {} .. {} m",
-                self.min_m, self.max_m
-            )));
-        }
-        Ok(())
-    }
-
-    /// Converts one raw value to metres, 0 when invalid or out of range.
-    #[inline]
-    #[must_use]
-    pub fn to_metres(&self, raw: u16) -> f32 {
-        if raw == 0 || Some(raw) == self.invalid_raw {
-            return 0.0;
-        }
-        let d = f32::from(raw) / self.scale;
-        if d >= self.min_m && d <= self.max_m {
-            d
-        } else {
-            0.0
-        }
-    }
-}
-
-/// A decoded RGB-D frame at full resolution.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct RgbdFrame {
-    /// Width, pixels.
-    pub width: usize,
-    /// Height, pixels.
-    pub height: usize,
-    /// Colour, RGB8 interleaved, row-major (`3 * width * height` bytes).
-    pub rgb: Vec<u8>,
-    /// Depth along +z in metres, 0 = no measurement, row-major.
-    pub depth_m: Vec<f32>,
-}
-
-/// Largest side accepted, pixels.
-pub const MAX_SIDE: usize = 16384;
-/// Largest image accepted, pixels (4096 x 4096): far above any RGB-D sensor,
-/// and low enough that a forged header cannot make the decoder allocate
-/// gigabytes (a wasm module has 4 GiB at most).
-pub const MAX_PIXELS: usize = 1 << 24;
-
-fn check_dimensions(width: usize, height: usize) -> Result<(), FrameError> {
-    if width == 0
-        || height == 0
-        || width > MAX_SIDE
-        || height > MAX_SIDE
-        || width * height > MAX_PIXELS
-    {
-        return Err(FrameError::BadDimensions { width, height });
-    }
-    Ok(())
-}
+use super::{check_dimensions, Channel, DepthSettings, FrameError, RgbdFrame};
 
 /// Reads an image's size from its header alone (no pixel decoding) and
 /// checks it is supported; `png_only` refuses other formats. Run before
@@ -199,20 +12,33 @@ pub fn image_dimensions(
     channel: Channel,
     png_only: bool,
 ) -> Result<(usize, usize), FrameError> {
+    let decoder = open_decoder(bytes, channel, png_only)?;
+    checked_dimensions(&decoder)
+}
+
+/// Opens a decoder on `bytes`, which parses the image header and nothing more.
+fn open_decoder(
+    bytes: &[u8],
+    channel: Channel,
+    png_only: bool,
+) -> Result<impl ImageDecoder + '_, FrameError> {
     let decode_error = |message: String| FrameError::Decode { channel, message };
-    let reader = image::ImageReader::new(std::io::Cursor::new(bytes));
-    let reader = if png_only {
-        let mut r = reader;
-        r.set_format(ImageFormat::Png);
-        r
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes));
+    if png_only {
+        reader.set_format(ImageFormat::Png);
     } else {
-        reader
+        reader = reader
             .with_guessed_format()
-            .map_err(|e| decode_error(e.to_string()))?
-    };
-    let (w, h) = reader
-        .into_dimensions()
-        .map_err(|e| decode_error(e.to_string()))?;
+            .map_err(|e| decode_error(e.to_string()))?;
+    }
+    reader
+        .into_decoder()
+        .map_err(|e| decode_error(e.to_string()))
+}
+
+/// The size the header of an opened decoder declares, if supported.
+fn checked_dimensions(decoder: &impl ImageDecoder) -> Result<(usize, usize), FrameError> {
+    let (w, h) = decoder.dimensions();
     let (w, h) = (w as usize, h as usize);
     check_dimensions(w, h)?;
     Ok((w, h))
@@ -227,6 +53,7 @@ pub struct DecodeScratch {
 }
 
 /// Decodes an image's pixels as stored (its own colour type) into `out`.
+/// The header is parsed once; its size is checked before `out` grows.
 fn decode_pixels(
     bytes: &[u8],
     channel: Channel,
@@ -234,18 +61,8 @@ fn decode_pixels(
     out: &mut Vec<u8>,
 ) -> Result<(usize, usize, ColorType), FrameError> {
     let decode_error = |message: String| FrameError::Decode { channel, message };
-    let (w, h) = image_dimensions(bytes, channel, png_only)?;
-    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes));
-    if png_only {
-        reader.set_format(ImageFormat::Png);
-    } else {
-        reader = reader
-            .with_guessed_format()
-            .map_err(|e| decode_error(e.to_string()))?;
-    }
-    let decoder = reader
-        .into_decoder()
-        .map_err(|e| decode_error(e.to_string()))?;
+    let decoder = open_decoder(bytes, channel, png_only)?;
+    let (w, h) = checked_dimensions(&decoder)?;
     let colour_type = decoder.color_type();
     let n = usize::try_from(decoder.total_bytes()).map_err(|e| decode_error(e.to_string()))?;
     out.resize(n, 0);
@@ -487,110 +304,12 @@ impl RgbdFrame {
         let depth_size = decode_depth_into(depth, settings, &mut self.depth_m, &mut scratch.depth)?;
         self.set_size((width, height), depth_size)
     }
-
-    /// Checks what a frame built by hand (its fields are public) could get
-    /// wrong: a supported size, buffer lengths matching it, every depth
-    /// finite and >= 0. Decoded frames always pass.
-    pub fn validate(&self) -> Result<(), FrameError> {
-        check_dimensions(self.width, self.height)?;
-        let n = self.width * self.height;
-        if self.depth_m.len() != n {
-            return Err(FrameError::BufferLength {
-                channel: Channel::Depth,
-                found: self.depth_m.len(),
-                expected: n,
-            });
-        }
-        if self.rgb.len() != 3 * n {
-            return Err(FrameError::BufferLength {
-                channel: Channel::Colour,
-                found: self.rgb.len(),
-                expected: 3 * n,
-            });
-        }
-        match self
-            .depth_m
-            .iter()
-            .position(|d| !(d.is_finite() && *d >= 0.0))
-        {
-            Some(pixel) => Err(FrameError::InvalidDepth {
-                pixel,
-                value: self.depth_m[pixel],
-            }),
-            None => Ok(()),
-        }
-    }
-
-    /// Errors unless the frame is `width` x `height`.
-    pub fn expect_size(&self, width: usize, height: usize) -> Result<(), FrameError> {
-        if (self.width, self.height) != (width, height) {
-            return Err(FrameError::UnexpectedSize {
-                width: self.width,
-                height: self.height,
-                expected_width: width,
-                expected_height: height,
-            });
-        }
-        Ok(())
-    }
-
-    /// Number of pixels with a depth measurement.
-    #[must_use]
-    pub fn valid_depth_count(&self) -> usize {
-        self.depth_m.iter().filter(|&&d| d > 0.0).count()
-    }
-
-    /// Depth resampled to `width` x `height` (each output pixel takes the
-    /// input pixel under its centre), metres, 0 = no measurement, row-major
-    /// into `out`, which is cleared first; a thumbnail for previews. Empty
-    /// when either size is zero.
-    pub fn depth_thumbnail_into(&self, width: usize, height: usize, out: &mut Vec<f32>) {
-        out.clear();
-        if self.width == 0 || self.height == 0 || width == 0 || height == 0 {
-            return;
-        }
-        out.reserve(width * height);
-        for y in 0..height {
-            let sy = ((2 * y + 1) * self.height / (2 * height)).min(self.height - 1);
-            for x in 0..width {
-                let sx = ((2 * x + 1) * self.width / (2 * width)).min(self.width - 1);
-                out.push(
-                    self.depth_m
-                        .get(sy * self.width + sx)
-                        .copied()
-                        .unwrap_or(0.0),
-                );
-            }
-        }
-    }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::*;
-    use image::{DynamicImage, ImageBuffer, Luma, Rgb};
-
-    #[test]
-    fn depth_thumbnail_takes_the_pixel_under_each_centre() {
-        let frame = RgbdFrame {
-            width: 4,
-            height: 2,
-            rgb: vec![0; 24],
-            depth_m: vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 0.0, 8.0],
-        };
-        let mut out = vec![9.0];
-        frame.depth_thumbnail_into(2, 1, &mut out);
-        assert_eq!(out, [6.0, 8.0]);
-        frame.depth_thumbnail_into(4, 2, &mut out);
-        assert_eq!(out, frame.depth_m);
-        frame.depth_thumbnail_into(8, 4, &mut out);
-        assert_eq!(out.len(), 32);
-        assert_eq!((out[0], out[7], out[24], out[29]), (1.0, 4.0, 5.0, 0.0));
-        frame.depth_thumbnail_into(0, 3, &mut out);
-        assert!(out.is_empty());
-        RgbdFrame::default().depth_thumbnail_into(2, 2, &mut out);
-        assert!(out.is_empty());
-    }
+    use super::super::*;
+    use image::{DynamicImage, ImageBuffer, ImageFormat, Luma, Rgb};
 
     fn png(img: DynamicImage) -> Vec<u8> {
         let mut out = std::io::Cursor::new(Vec::new());
@@ -749,21 +468,5 @@ mod tests {
             matches!(huge, Err(FrameError::BadDimensions { .. })),
             "{huge:?}"
         );
-    }
-
-    #[test]
-    fn out_of_range_and_invalid_raw_become_zero() {
-        let s = DepthSettings {
-            scale: 1000.0,
-            min_m: 0.3,
-            max_m: 4.0,
-            invalid_raw: Some(65535),
-        };
-        assert_eq!(s.to_metres(65535), 0.0);
-        assert_eq!(s.to_metres(100), 0.0);
-        assert_eq!(s.to_metres(5000), 0.0);
-        assert!((s.to_metres(1500) - 1.5).abs() < 1e-6);
-        let bad = DepthSettings { scale: 0.0, ..s };
-        assert!(bad.validate().is_err());
     }
 }
