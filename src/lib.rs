@@ -13,6 +13,7 @@ pub mod eval;
 pub mod flow;
 pub mod frame;
 pub mod fusion;
+pub mod mesh;
 pub mod pipeline;
 pub mod preprocess;
 pub mod se3;
