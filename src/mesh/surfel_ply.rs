@@ -216,3 +216,77 @@ pub fn read_surfel_ply(bytes: &[u8]) -> Result<SurfelMap, SurfelPlyError> {
     }
     Ok(map)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::ply::write_ply;
+    use crate::mesh::tests::sphere_map;
+
+    #[test]
+    fn reads_back_what_the_surfel_writer_writes() {
+        let mut map = sphere_map(Vec3::new(0.1, 0.2, 1.0), 0.1, 0.02);
+        map.confidences[3] = 2.5;
+        let back = read_surfel_ply(&write_ply(&map)).expect("reads");
+        assert_eq!(back.len(), map.len());
+        for i in 0..map.len() {
+            assert_eq!(back.positions[i], map.positions[i]);
+            assert!((back.normals[i] - map.normals[i]).length() < 1e-6);
+            assert_eq!(back.colours[i], map.colours[i]);
+            assert_eq!(back.radii[i], map.radii[i]);
+            assert_eq!(back.confidences[i], map.confidences[i]);
+        }
+    }
+
+    #[test]
+    fn bad_files_are_errors() {
+        let good = write_ply(&sphere_map(Vec3::Z, 0.1, 0.02));
+        assert!(matches!(
+            read_surfel_ply(b""),
+            Err(SurfelPlyError::Header(_))
+        ));
+        assert!(matches!(
+            read_surfel_ply(b"not a ply"),
+            Err(SurfelPlyError::Header(_))
+        ));
+        let truncated = &good[..good.len() - 5];
+        assert!(matches!(
+            read_surfel_ply(truncated),
+            Err(SurfelPlyError::Truncated { .. })
+        ));
+        let text = String::from_utf8_lossy(&good).into_owned();
+        let ascii = text.replace("binary_little_endian", "ascii");
+        assert!(matches!(
+            read_surfel_ply(ascii.as_bytes()),
+            Err(SurfelPlyError::Format(_))
+        ));
+        let no_normals = b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n\0\0\0\0\0\0\0\0\0\0\0\0";
+        assert_eq!(
+            read_surfel_ply(no_normals),
+            Err(SurfelPlyError::MissingProperty("nx"))
+        );
+        let huge = b"ply\nformat binary_little_endian 1.0\nelement vertex 99999999999999999\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n";
+        assert!(matches!(
+            read_surfel_ply(huge),
+            Err(SurfelPlyError::Truncated { .. })
+        ));
+        // Doubles and no colour, radius or confidence: defaults.
+        let mut minimal = b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty double x\nproperty double y\nproperty double z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n".to_vec();
+        for v in [[1.0f64, 2.0, 3.0], [f64::NAN, 0.0, 0.0]] {
+            for x in v {
+                minimal.extend_from_slice(&x.to_le_bytes());
+            }
+            for n in [0.0f32, 0.0, 2.0] {
+                minimal.extend_from_slice(&n.to_le_bytes());
+            }
+        }
+        let m = read_surfel_ply(&minimal).expect("reads");
+        assert_eq!(m.len(), 1, "the NaN point is dropped");
+        assert_eq!(m.positions[0], Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(m.normals[0], Vec3::Z);
+        assert_eq!(
+            (m.radii[0], m.confidences[0]),
+            (DEFAULT_RADIUS_M, DEFAULT_CONFIDENCE)
+        );
+    }
+}
