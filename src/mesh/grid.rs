@@ -49,6 +49,9 @@ pub(super) fn local_index(v: IVec3) -> usize {
 pub(super) struct Grid {
     /// Voxel edge, metres.
     pub(super) voxel: f32,
+    /// A cell makes a vertex only if a corner lies within this of a surfel
+    /// centre: the square of that distance, m^2.
+    pub(super) max_gap2: f32,
     /// Selected surfels as (packed block key, surfel index), sorted.
     sorted: Vec<(u64, u32)>,
     /// Packed block key -> range in `sorted`.
@@ -65,6 +68,8 @@ pub(super) struct Grid {
     pub(super) weight: Vec<f32>,
     /// Colour per voxel, RGBA8.
     pub(super) colour: Vec<[u8; 4]>,
+    /// Per voxel, the squared distance to the nearest surfel centre, m^2.
+    pub(super) near: Vec<f32>,
     /// Per cell (named by its lowest voxel), the index of its mesh vertex or `NONE`.
     pub(super) cell_vertex: Vec<u32>,
     /// Old vertex index -> new, when unused vertices are dropped.
@@ -99,6 +104,7 @@ impl Grid {
             + self.sdf.capacity() * 4
             + self.weight.capacity() * 4
             + self.colour.capacity() * 4
+            + self.near.capacity() * 4
             + self.cell_vertex.capacity() * 4
             + self.remap.capacity() * 4
     }
@@ -113,7 +119,8 @@ impl Grid {
     ) -> Result<(usize, usize), MeshError> {
         let voxel = config.voxel_size_m;
         self.voxel = voxel;
-        let reach = config.support_voxels * voxel;
+        self.max_gap2 = (config.max_gap_voxels * voxel).powi(2);
+        let reach = config.support_voxels.max(config.tangential_voxels) * voxel;
         let block_m = voxel * B as f32;
         let n = [
             map.positions.len(),
@@ -219,6 +226,8 @@ impl Grid {
         self.weight.resize(blocks * BV, 0.0);
         self.colour.clear();
         self.colour.resize(blocks * BV, [0, 0, 0, 255]);
+        self.near.clear();
+        self.near.resize(blocks * BV, f32::INFINITY);
         let batch = blocks.div_ceil(BATCHES).max(1);
         let splat = Splat {
             map,
@@ -226,24 +235,28 @@ impl Grid {
             buckets: &self.buckets,
             voxel,
             reach,
+            normal_reach: config.support_voxels * voxel,
+            tangential_reach: config.tangential_voxels * voxel,
             min_weight: config.min_weight,
         };
-        for (n_done, (((keys, sdf), weight), colour)) in self
+        for (n_done, ((((keys, sdf), weight), colour), near)) in self
             .keys
             .chunks(batch)
             .zip(self.sdf.chunks_mut(batch * BV))
             .zip(self.weight.chunks_mut(batch * BV))
             .zip(self.colour.chunks_mut(batch * BV))
+            .zip(self.near.chunks_mut(batch * BV))
             .enumerate()
         {
             keys.par_iter()
                 .zip(sdf.par_chunks_mut(BV))
                 .zip(weight.par_chunks_mut(BV))
                 .zip(colour.par_chunks_mut(BV))
+                .zip(near.par_chunks_mut(BV))
                 .for_each_init(
                     || vec![[0.0f32; 5]; BV],
-                    |acc, (((&key, sdf), weight), colour)| {
-                        splat.block(key, acc, sdf, weight, colour);
+                    |acc, ((((&key, sdf), weight), colour), near)| {
+                        splat.block(key, acc, sdf, weight, colour, near);
                     },
                 );
             progress(0.1 + 0.9 * ((n_done + 1) * batch).min(blocks) as f32 / blocks as f32);
@@ -258,6 +271,7 @@ impl Grid {
         self.sdf.clear();
         self.weight.clear();
         self.colour.clear();
+        self.near.clear();
         self.cell_vertex.clear();
     }
 }
@@ -269,6 +283,8 @@ struct Splat<'a> {
     buckets: &'a HashMap<u64, (u32, u32)>,
     voxel: f32,
     reach: f32,
+    normal_reach: f32,
+    tangential_reach: f32,
     min_weight: f32,
 }
 
@@ -282,15 +298,16 @@ impl Splat<'_> {
         sdf: &mut [f32],
         weight: &mut [f32],
         colour: &mut [[u8; 4]],
+        near: &mut [f32],
     ) {
         acc.fill([0.0; 5]);
+        near.fill(f32::INFINITY);
         let origin = key * B;
         // Positions relative to the block's first voxel keep f32 precise
         // far from the world origin.
         let origin_m = origin.as_vec3() * self.voxel;
         let inv_voxel = 1.0 / self.voxel;
-        let reach2 = self.reach * self.reach;
-        let inv_reach2 = 1.0 / reach2;
+        let inv_normal2 = 1.0 / (self.normal_reach * self.normal_reach);
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
@@ -313,6 +330,10 @@ impl Splat<'_> {
                             continue;
                         }
                         let n = self.map.normals[i];
+                        // A wide disk (far or oblique view) reaches further
+                        // along the surface.
+                        let rt = self.tangential_reach.max(self.map.radii[i].min(self.reach));
+                        let inv_tangential2 = 1.0 / (rt * rt);
                         let c = (self.map.confidences[i] / FULL_WEIGHT_CONFIDENCE).min(1.0);
                         let rgb = self.map.colours[i];
                         let rgb = [f32::from(rgb[0]), f32::from(rgb[1]), f32::from(rgb[2])];
@@ -321,15 +342,25 @@ impl Splat<'_> {
                                 let row = local_index(IVec3::new(0, y, z));
                                 for x in lo.x..=hi.x {
                                     let d = IVec3::new(x, y, z).as_vec3() * self.voxel - p;
-                                    let d2 = d.length_squared();
-                                    if d2 >= reach2 {
+                                    let along = n.dot(d);
+                                    let across2 = d.length_squared() - along * along;
+                                    // Elliptic reach: the distance field
+                                    // needs depth across the surface (a
+                                    // crossed cell's corners lie up to 1.7
+                                    // voxels off it), not width along it,
+                                    // where it would run past the surface's
+                                    // edge.
+                                    let q = along * along * inv_normal2 + across2 * inv_tangential2;
+                                    if q >= 1.0 {
                                         continue;
                                     }
                                     // Wendland-like: smooth, zero at the reach.
-                                    let k = 1.0 - d2 * inv_reach2;
+                                    let k = 1.0 - q;
                                     let w = c * k * k;
-                                    let a = &mut acc[row + x as usize];
-                                    a[0] += w * n.dot(d);
+                                    let j = row + x as usize;
+                                    near[j] = near[j].min(d.length_squared());
+                                    let a = &mut acc[j];
+                                    a[0] += w * along;
                                     a[1] += w;
                                     a[2] += w * rgb[0];
                                     a[3] += w * rgb[1];

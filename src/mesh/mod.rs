@@ -45,9 +45,17 @@ pub struct MeshConfig {
     /// Only surfels at least this confident are used; the default is
     /// fusion's stable confidence (`FusionConfig::stable_confidence`).
     pub min_confidence: f32,
-    /// Reach of a surfel's kernel, in voxels: the distance field at a voxel
-    /// averages the surfels within this many voxel edges of it.
+    /// Reach of a surfel's kernel along its normal, in voxels: the
+    /// distance field at a voxel averages the surfels whose elliptic kernel
+    /// reaches it.
     pub support_voxels: f32,
+    /// Reach of a surfel's kernel along the surface, in voxels (at least
+    /// the surfel's radius).
+    pub tangential_voxels: f32,
+    /// A cell makes a vertex only if one of its corners lies within this
+    /// many voxels of a surfel's centre (a crossing of the zero level far
+    /// from every surfel is the kernel's extrapolation).
+    pub max_gap_voxels: f32,
     /// A voxel whose summed kernel weight is below this counts as unobserved
     /// (one surfel of full weight contributes at most 1).
     pub min_weight: f32,
@@ -62,7 +70,9 @@ impl Default for MeshConfig {
             voxel_size_m: 0.01,
             min_confidence: crate::fusion::FusionConfig::default().stable_confidence,
             support_voxels: 2.5,
-            min_weight: 0.5,
+            tangential_voxels: 1.0,
+            max_gap_voxels: 1.0,
+            min_weight: 0.25,
             max_blocks: 1 << 16,
         }
     }
@@ -94,6 +104,18 @@ impl MeshConfig {
             return Err(MeshError::InvalidConfig(format!(
                 "support must be between 0.5 and 4 voxels, got {}",
                 self.support_voxels
+            )));
+        }
+        if !(self.tangential_voxels >= 0.5 && self.tangential_voxels <= 4.0) {
+            return Err(MeshError::InvalidConfig(format!(
+                "tangential support must be between 0.5 and 4 voxels, got {}",
+                self.tangential_voxels
+            )));
+        }
+        if !(self.max_gap_voxels >= 0.0 && self.max_gap_voxels.is_finite()) {
+            return Err(MeshError::InvalidConfig(format!(
+                "maximum gap must be finite and >= 0 voxels, got {}",
+                self.max_gap_voxels
             )));
         }
         if !(self.min_weight > 0.0 && self.min_weight.is_finite()) {

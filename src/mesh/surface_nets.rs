@@ -65,6 +65,17 @@ impl Around<'_> {
         (self.grid.weight[i] > 0.0).then(|| self.grid.sdf[i])
     }
 
+    /// Whether some corner of the cell whose lowest voxel is `c` lies within
+    /// `MeshConfig::max_gap_voxels` of a surfel centre: a crossing far from every surfel
+    /// is the kernel's guess, not a measurement.
+    #[inline(always)]
+    fn near_surfel(&self, c: IVec3) -> bool {
+        CORNERS.iter().any(|d| {
+            self.voxel(c + *d)
+                .is_some_and(|i| self.grid.near[i] <= self.grid.max_gap2)
+        })
+    }
+
     /// The distances at the 8 corners of the cell whose lowest voxel is
     /// `c`, if all are observed and the zero level crosses the cell.
     #[inline(always)]
@@ -112,7 +123,7 @@ pub(super) fn extract(grid: &mut Grid, mesh: &mut TriangleMesh, progress: &mut d
                 let mut n = 0;
                 for (i, cell) in cells.iter_mut().enumerate() {
                     let c = IVec3::new(i as i32 % B, (i as i32 / B) % B, i as i32 / (B * B));
-                    if around.crossed_cell(c).is_some() {
+                    if around.crossed_cell(c).is_some() && around.near_surfel(c) {
                         *cell = n;
                         n += 1;
                     }
