@@ -17,6 +17,7 @@
 pub mod convert;
 pub mod dataset;
 pub mod flow;
+pub mod mesh;
 pub mod slam;
 
 use wasm_bindgen::prelude::*;
