@@ -21,6 +21,10 @@ const KEY_LIMIT: i32 = (1 << 20) - 2;
 const FULL_WEIGHT_CONFIDENCE: f32 = 20.0;
 /// Progress calls per parallel stage.
 const BATCHES: usize = 24;
+/// Voxel flag: the summed kernel weight reached `MeshConfig::min_weight`.
+pub(super) const OBSERVED: u8 = 1;
+/// Voxel flag: a surfel centre lies within `MeshConfig::max_gap_voxels`.
+pub(super) const NEAR: u8 = 2;
 /// No block / no vertex.
 pub(super) const NONE: u32 = u32::MAX;
 
@@ -49,9 +53,6 @@ pub(super) fn local_index(v: IVec3) -> usize {
 pub(super) struct Grid {
     /// Voxel edge, metres.
     pub(super) voxel: f32,
-    /// A cell makes a vertex only if a corner lies within this of a surfel
-    /// centre: the square of that distance, m^2.
-    pub(super) max_gap2: f32,
     /// Selected surfels as (packed block key, surfel index), sorted.
     sorted: Vec<(u64, u32)>,
     /// Packed block key -> range in `sorted`.
@@ -64,12 +65,10 @@ pub(super) struct Grid {
     pub(super) neighbours: Vec<[u32; 27]>,
     /// Signed distance per voxel, metres (positive on the side the normals point to).
     pub(super) sdf: Vec<f32>,
-    /// Summed kernel weight per voxel; 0 = unobserved.
-    pub(super) weight: Vec<f32>,
-    /// Colour per voxel, RGBA8.
+    /// Colour per voxel, RGB8, and in the fourth byte the flags
+    /// [`OBSERVED`] and [`NEAR`] (one array instead of three: the grid is
+    /// most of the meshing's memory).
     pub(super) colour: Vec<[u8; 4]>,
-    /// Per voxel, the squared distance to the nearest surfel centre, m^2.
-    pub(super) near: Vec<f32>,
     /// Per cell (named by its lowest voxel), the index of its mesh vertex or `NONE`.
     pub(super) cell_vertex: Vec<u32>,
     /// Old vertex index -> new, when unused vertices are dropped.
@@ -102,9 +101,7 @@ impl Grid {
             + self.keys.capacity() * size_of::<IVec3>()
             + self.neighbours.capacity() * size_of::<[u32; 27]>()
             + self.sdf.capacity() * 4
-            + self.weight.capacity() * 4
             + self.colour.capacity() * 4
-            + self.near.capacity() * 4
             + self.cell_vertex.capacity() * 4
             + self.remap.capacity() * 4
     }
@@ -119,7 +116,6 @@ impl Grid {
     ) -> Result<(usize, usize), MeshError> {
         let voxel = config.voxel_size_m;
         self.voxel = voxel;
-        self.max_gap2 = (config.max_gap_voxels * voxel).powi(2);
         let reach = config.support_voxels.max(config.tangential_voxels) * voxel;
         let block_m = voxel * B as f32;
         let n = [
@@ -222,12 +218,8 @@ impl Grid {
         let blocks = self.keys.len();
         self.sdf.clear();
         self.sdf.resize(blocks * BV, 0.0);
-        self.weight.clear();
-        self.weight.resize(blocks * BV, 0.0);
         self.colour.clear();
-        self.colour.resize(blocks * BV, [0, 0, 0, 255]);
-        self.near.clear();
-        self.near.resize(blocks * BV, f32::INFINITY);
+        self.colour.resize(blocks * BV, [0; 4]);
         let batch = blocks.div_ceil(BATCHES).max(1);
         let splat = Splat {
             map,
@@ -238,25 +230,22 @@ impl Grid {
             normal_reach: config.support_voxels * voxel,
             tangential_reach: config.tangential_voxels * voxel,
             min_weight: config.min_weight,
+            max_gap2: (config.max_gap_voxels * voxel).powi(2),
         };
-        for (n_done, ((((keys, sdf), weight), colour), near)) in self
+        for (n_done, ((keys, sdf), colour)) in self
             .keys
             .chunks(batch)
             .zip(self.sdf.chunks_mut(batch * BV))
-            .zip(self.weight.chunks_mut(batch * BV))
             .zip(self.colour.chunks_mut(batch * BV))
-            .zip(self.near.chunks_mut(batch * BV))
             .enumerate()
         {
             keys.par_iter()
                 .zip(sdf.par_chunks_mut(BV))
-                .zip(weight.par_chunks_mut(BV))
                 .zip(colour.par_chunks_mut(BV))
-                .zip(near.par_chunks_mut(BV))
                 .for_each_init(
-                    || vec![[0.0f32; 5]; BV],
-                    |acc, ((((&key, sdf), weight), colour), near)| {
-                        splat.block(key, acc, sdf, weight, colour, near);
+                    || vec![[0.0f32; 6]; BV],
+                    |acc, ((&key, sdf), colour)| {
+                        splat.block(key, acc, sdf, colour);
                     },
                 );
             progress(0.1 + 0.9 * ((n_done + 1) * batch).min(blocks) as f32 / blocks as f32);
@@ -269,9 +258,7 @@ impl Grid {
         self.index.clear();
         self.neighbours.clear();
         self.sdf.clear();
-        self.weight.clear();
         self.colour.clear();
-        self.near.clear();
         self.cell_vertex.clear();
     }
 }
@@ -286,22 +273,14 @@ struct Splat<'a> {
     normal_reach: f32,
     tangential_reach: f32,
     min_weight: f32,
+    max_gap2: f32,
 }
 
 impl Splat<'_> {
     /// Fills one block: `acc` is scratch (per voxel: weighted distance,
-    /// weight, weighted r, g, b).
-    fn block(
-        &self,
-        key: IVec3,
-        acc: &mut [[f32; 5]],
-        sdf: &mut [f32],
-        weight: &mut [f32],
-        colour: &mut [[u8; 4]],
-        near: &mut [f32],
-    ) {
-        acc.fill([0.0; 5]);
-        near.fill(f32::INFINITY);
+    /// weight, weighted r, g, b, squared distance to the nearest centre).
+    fn block(&self, key: IVec3, acc: &mut [[f32; 6]], sdf: &mut [f32], colour: &mut [[u8; 4]]) {
+        acc.fill([0.0, 0.0, 0.0, 0.0, 0.0, f32::INFINITY]);
         let origin = key * B;
         // Positions relative to the block's first voxel keep f32 precise
         // far from the world origin.
@@ -357,9 +336,8 @@ impl Splat<'_> {
                                     // Wendland-like: smooth, zero at the reach.
                                     let k = 1.0 - q;
                                     let w = c * k * k;
-                                    let j = row + x as usize;
-                                    near[j] = near[j].min(d.length_squared());
-                                    let a = &mut acc[j];
+                                    let a = &mut acc[row + x as usize];
+                                    a[5] = a[5].min(d.length_squared());
                                     a[0] += w * along;
                                     a[1] += w;
                                     a[2] += w * rgb[0];
@@ -372,22 +350,21 @@ impl Splat<'_> {
                 }
             }
         }
-        for (((a, s), w), c) in acc.iter().zip(sdf).zip(weight).zip(colour) {
+        for ((a, s), c) in acc.iter().zip(sdf).zip(colour) {
             if a[1] >= self.min_weight {
                 let inv = 1.0 / a[1];
                 *s = a[0] * inv;
-                *w = a[1];
+                let near = if a[5] <= self.max_gap2 { NEAR } else { 0 };
                 // +0.5 then truncation rounds (values are non-negative).
                 *c = [
                     (a[2] * inv + 0.5).min(255.0) as u8,
                     (a[3] * inv + 0.5).min(255.0) as u8,
                     (a[4] * inv + 0.5).min(255.0) as u8,
-                    255,
+                    OBSERVED | near,
                 ];
             } else {
                 *s = 0.0;
-                *w = 0.0;
-                *c = [0, 0, 0, 255];
+                *c = [0; 4];
             }
         }
     }

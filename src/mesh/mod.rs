@@ -59,7 +59,7 @@ pub struct MeshConfig {
     /// A voxel whose summed kernel weight is below this counts as unobserved
     /// (one surfel of full weight contributes at most 1).
     pub min_weight: f32,
-    /// Largest number of 8x8x8-voxel blocks (about 8.4 KB each); a map that
+    /// Largest number of 8x8x8-voxel blocks (about 6.2 KB each); a map that
     /// needs more is refused with [`MeshError::TooLarge`].
     pub max_blocks: usize,
 }

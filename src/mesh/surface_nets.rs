@@ -7,7 +7,7 @@
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
 
-use super::grid::{local_index, neighbour_slot, Grid, B, BV, NONE};
+use super::grid::{local_index, neighbour_slot, Grid, B, BV, NEAR, NONE, OBSERVED};
 use super::TriangleMesh;
 
 /// The 8 corners of a cell, as offsets from its lowest voxel; corner `i`
@@ -62,7 +62,7 @@ impl Around<'_> {
     #[inline(always)]
     fn sdf(&self, v: IVec3) -> Option<f32> {
         let i = self.voxel(v)?;
-        (self.grid.weight[i] > 0.0).then(|| self.grid.sdf[i])
+        (self.grid.colour[i][3] & OBSERVED != 0).then(|| self.grid.sdf[i])
     }
 
     /// Whether some corner of the cell whose lowest voxel is `c` lies within
@@ -72,7 +72,7 @@ impl Around<'_> {
     fn near_surfel(&self, c: IVec3) -> bool {
         CORNERS.iter().any(|d| {
             self.voxel(c + *d)
-                .is_some_and(|i| self.grid.near[i] <= self.grid.max_gap2)
+                .is_some_and(|i| self.grid.colour[i][3] & NEAR != 0)
         })
     }
 
