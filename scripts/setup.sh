@@ -39,7 +39,7 @@ if [ ${#need_apt[@]} -gt 0 ]; then
 fi
 
 if [ -f package-lock.json ]; then
-  if [ ! -d node_modules/playwright-core ]; then
+  if [ ! -d node_modules/playwright-core ] || [ ! -d node_modules/gltf-validator ]; then
     log "npm ci"
     npm ci --no-audit --no-fund --loglevel=error
   fi

@@ -14,6 +14,7 @@ pub mod features;
 pub mod flow;
 pub mod frame;
 pub mod fusion;
+pub mod mesh;
 pub mod pipeline;
 pub mod preprocess;
 pub mod se3;

@@ -15,11 +15,14 @@ use anyhow::{bail, Context, Result};
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use surfel_slam::dataset::{ply::write_ply, trajectory, DatasetSource, FrameEntry, Sequence};
 use surfel_slam::eval::ate;
-use surfel_slam::fusion::FusionConfig;
+use surfel_slam::fusion::{FusionConfig, SurfelMap};
+use surfel_slam::mesh::{
+    read_surfel_ply, write_mesh, MeshConfig, MeshFormat, Mesher, TriangleMesh,
+};
 use surfel_slam::track::{TrackerConfig, TrackerMode};
 use surfel_slam::{CameraPreset, Pipeline, SlamConfig, Verdict};
 
@@ -44,6 +47,8 @@ enum Command {
     /// Time every stage over a sequence (files preloaded; decode included):
     /// medians per stage and per frame, peak memory.
     Bench(bench::BenchArgs),
+    /// Mesh a saved surfel map (binary PLY, as `run --ply` writes it).
+    Mesh(MeshArgs),
     /// ATE and RPE of a TUM-format trajectory against ground truth;
     /// optionally the per-pose errors as CSV and a plot.
     Eval(evaluate::EvalArgs),
@@ -81,6 +86,28 @@ struct RunArgs {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
+    /// Write a triangle mesh of the confident surfels here (.glb, .ply or .obj).
+    #[arg(long)]
+    mesh: Option<PathBuf>,
+    /// Voxel edge of the mesh, metres.
+    #[arg(long, default_value_t = MeshConfig::default().voxel_size_m)]
+    voxel_size: f32,
+}
+
+#[derive(Args)]
+struct MeshArgs {
+    /// Surfel map (binary little-endian PLY with x y z nx ny nz; colours,
+    /// radius and confidence used when present).
+    map: PathBuf,
+    /// Output mesh (.glb, .ply or .obj).
+    #[arg(long, short)]
+    output: PathBuf,
+    /// Voxel edge, metres.
+    #[arg(long, default_value_t = MeshConfig::default().voxel_size_m)]
+    voxel_size: f32,
+    /// Use only surfels at least this confident (default: fusion's stable confidence).
+    #[arg(long, default_value_t = MeshConfig::default().min_confidence)]
+    min_confidence: f32,
 }
 
 /// Processing options shared by `run` and `bench`.
@@ -221,6 +248,7 @@ fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Command::Run(args) => run(&args),
         Command::Bench(args) => bench::bench(&args).map(|()| 0),
+        Command::Mesh(args) => mesh_file(&args).map(|()| 0),
         Command::Eval(args) => evaluate::evaluate(&args).map(|()| 0),
     };
     match result {
@@ -320,6 +348,15 @@ fn run(args: &RunArgs) -> Result<u8> {
             args.first
         );
     }
+    // Refuse a bad mesh path or voxel size before the run, not after it.
+    let mesh_config = MeshConfig {
+        voxel_size_m: args.voxel_size,
+        ..MeshConfig::default()
+    };
+    if let Some(path) = &args.mesh {
+        mesh_format(path)?;
+        mesh_config.validate()?;
+    }
     let mut config = config_for(&sequence, &args.camera, &args.tracking)?;
     // The sequence's own image size wins over the preset's.
     let (width, height) = first_readable(&mut source, &frames, &config)?;
@@ -406,6 +443,13 @@ fn run(args: &RunArgs) -> Result<u8> {
         std::fs::write(path, write_ply(slam.map()))
             .with_context(|| format!("writing {}", path.display()))?;
     }
+    if let Some(path) = &args.mesh {
+        let config = MeshConfig {
+            min_confidence: slam.config().fusion.stable_confidence,
+            ..mesh_config
+        };
+        write_mesh_file(slam.map(), &config, path, args.quiet)?;
+    }
     ms.sort_by(f64::total_cmp);
     let mean = ms.iter().sum::<f64>() / ms.len().max(1) as f64;
     let median = ms.get(ms.len() / 2).copied().unwrap_or(0.0);
@@ -428,4 +472,57 @@ fn run(args: &RunArgs) -> Result<u8> {
         slam.map().live_len(),
     );
     Ok(if failed > 0 { EXIT_FRAMES_SKIPPED } else { 0 })
+}
+
+fn mesh_format(path: &Path) -> Result<MeshFormat> {
+    MeshFormat::from_path(path).with_context(|| {
+        format!(
+            "{}: unknown mesh format; use a .glb, .ply or .obj file name",
+            path.display()
+        )
+    })
+}
+
+/// Meshes `map` and writes the mesh to `path` (format from the extension);
+/// prints one line with the counts and the time.
+fn write_mesh_file(map: &SurfelMap, config: &MeshConfig, path: &Path, quiet: bool) -> Result<()> {
+    let format = mesh_format(path)?;
+    let t0 = std::time::Instant::now();
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(100)
+    };
+    let mut mesh = TriangleMesh::default();
+    let stats = Mesher::new().mesh_into(map, config, &mut mesh, &mut |f| {
+        bar.set_position((f * 100.0) as u64);
+    })?;
+    bar.finish_and_clear();
+    let ms = t0.elapsed().as_secs_f64() * 1000.0;
+    std::fs::write(path, write_mesh(&mesh, format))
+        .with_context(|| format!("writing {}", path.display()))?;
+    println!(
+        "{}: {} vertices, {} triangles from {} surfels ({} voxel blocks of {} m voxels), meshed in {ms:.0} ms",
+        path.display(),
+        stats.vertices,
+        stats.triangles,
+        stats.surfels_used,
+        stats.blocks,
+        config.voxel_size_m
+    );
+    Ok(())
+}
+
+fn mesh_file(args: &MeshArgs) -> Result<()> {
+    mesh_format(&args.output)?;
+    let config = MeshConfig {
+        voxel_size_m: args.voxel_size,
+        min_confidence: args.min_confidence,
+        ..MeshConfig::default()
+    };
+    config.validate()?;
+    let bytes =
+        std::fs::read(&args.map).with_context(|| format!("reading {}", args.map.display()))?;
+    let map = read_surfel_ply(&bytes).with_context(|| args.map.display().to_string())?;
+    write_mesh_file(&map, &config, &args.output, false)
 }

@@ -19,6 +19,7 @@ pub mod archive;
 pub mod convert;
 pub mod dataset;
 pub mod flow;
+pub mod mesh;
 pub mod slam;
 
 use wasm_bindgen::prelude::*;
