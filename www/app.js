@@ -325,6 +325,11 @@ function clearMap() {
   plots.setGroundTruth(!!sequence?.groundTruth?.length);
   status.plotFrames = 0;
   views.clear();
+  // The mesh went with the map: back to the splats that will grow again.
+  ui.viewMesh.checked = false;
+  status.meshView = false;
+  status.meshTriangles = null;
+  renderer?.setShowMesh(false);
 }
 
 let gtAlign = null; // display-frame transform from the ground truth to the estimate, set at its first pose
