@@ -45,6 +45,9 @@ const status = {
   positionErrorCm: null, // last frame's distance to the ground truth (aligned at its first pose), cm
   displayFlipY: false, // the map is shown mirrored in y (negative fy: ICL-NUIM) so that it is upright
   plotFrames: 0, // frames in the plots
+  meshView: false, // the view shows the mesh instead of the splats
+  meshTriangles: null, // triangles of the mesh in the view (null: none received yet)
+  meshProgress: null, // fraction of the meshing under way, null when none
 };
 window.surfelSlamStatus = status;
 
@@ -56,6 +59,11 @@ const ui = {
   reset: $('reset-button'),
   ply: $('ply-button'),
   trajectory: $('trajectory-button'),
+  meshGlb: $('mesh-glb-button'),
+  meshPly: $('mesh-ply-button'),
+  pointsGlb: $('points-glb-button'),
+  meshProgress: $('mesh-progress'),
+  viewMesh: $('view-mesh'),
   message: $('message'),
   messageText: $('message-text'),
   preset: $('preset'),
@@ -222,6 +230,7 @@ function setControls() {
   ui.reset.disabled = !has;
   ui.ply.disabled = !status.ready && !status.failed;
   ui.trajectory.disabled = !status.ready && !status.failed;
+  for (const b of [ui.meshGlb, ui.meshPly, ui.pointsGlb]) b.disabled = !status.ready || status.failed;
   ui.play.textContent = workerPlaying ? 'Pause' : status.done ? 'Replay' : 'Play';
   ui.play.title = workerPlaying ? 'stop after this frame' : status.done ? 'empty the map and play again from the first frame' : '';
 }
@@ -316,6 +325,11 @@ function clearMap() {
   plots.setGroundTruth(!!sequence?.groundTruth?.length);
   status.plotFrames = 0;
   views.clear();
+  // The mesh went with the map: back to the splats that will grow again.
+  ui.viewMesh.checked = false;
+  status.meshView = false;
+  status.meshTriangles = null;
+  renderer?.setShowMesh(false);
 }
 
 let gtAlign = null; // display-frame transform from the ground truth to the estimate, set at its first pose
@@ -477,7 +491,34 @@ const handlers = {
     setControls();
   },
 
+  [FromWorker.MESH_PROGRESS](msg) {
+    status.meshProgress = msg.fraction;
+    ui.meshProgress.textContent = `meshing ${Math.round(100 * msg.fraction)} %`;
+  },
+
+  [FromWorker.MESH](msg) {
+    meshDone();
+    if (msg.unavailable || msg.error) {
+      reportError(`mesh: ${msg.error || 'the SLAM module failed; Play, Step or Reset starts again'}`);
+      return;
+    }
+    const mesh = displayChunk({ positions: msg.positions, normals: msg.normals, colours: msg.colours, indices: msg.indices });
+    renderer?.setMesh(mesh);
+    status.meshTriangles = msg.indices.length / 3;
+  },
+
   [FromWorker.EXPORT](msg) {
+    if (msg.what.startsWith('mesh-') || msg.what === 'points-glb') {
+      meshDone();
+      if (msg.unavailable || msg.error) {
+        reportError(`${msg.what}: ${msg.error || 'the SLAM module failed; Play, Step or Reset starts again'}`);
+        return;
+      }
+      const base = (msg.name || 'surfel-slam').replace(/[^\w.-]+/g, '_');
+      const [kind, ext] = msg.what.split('-');
+      download(new Blob([msg.bytes], { type: ext === 'glb' ? 'model/gltf-binary' : 'application/octet-stream' }), `${base}_${kind}.${ext}`);
+      return;
+    }
     if (msg.unavailable) {
       downloadMirror(msg.what);
       return;
@@ -530,6 +571,21 @@ ui.ply.addEventListener('click', () => (status.failed ? downloadMirror('ply') : 
 ui.trajectory.addEventListener('click', () =>
   status.failed ? downloadMirror('trajectory') : send({ type: ToWorker.EXPORT_TRAJECTORY }),
 );
+
+function meshDone() {
+  status.meshProgress = null;
+  ui.meshProgress.textContent = '';
+}
+ui.meshGlb.addEventListener('click', () => send({ type: ToWorker.EXPORT_MESH, format: 'glb' }));
+ui.meshPly.addEventListener('click', () => send({ type: ToWorker.EXPORT_MESH, format: 'ply' }));
+ui.pointsGlb.addEventListener('click', () => send({ type: ToWorker.EXPORT_MESH, format: 'glb-points' }));
+// Meshed once each time the view is switched on (not every frame: it takes
+// about as long as a few frames).
+ui.viewMesh.addEventListener('change', () => {
+  status.meshView = ui.viewMesh.checked;
+  renderer?.setShowMesh(status.meshView);
+  if (status.meshView) send({ type: ToWorker.VIEW_MESH });
+});
 
 /** New camera or tracker settings: the worker restarts the sequence with them and plays. */
 function applySettings() {

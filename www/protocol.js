@@ -25,6 +25,10 @@ export const ToWorker = Object.freeze({
   EXPORT_PLY: 'exportPly',
   /** Trajectory as TUM text; answered by EXPORT. */
   EXPORT_TRAJECTORY: 'exportTrajectory',
+  /** {format: 'glb'|'ply'|'glb-points'}: the map as a mesh file (or the surfels as .glb points); answered by MESH_PROGRESS messages, then EXPORT {what: 'mesh-glb'|'mesh-ply'|'points-glb'}. */
+  EXPORT_MESH: 'exportMesh',
+  /** Mesh the map for the page's mesh view; answered by MESH_PROGRESS messages, then MESH. */
+  VIEW_MESH: 'viewMesh',
   /** Test hook, honoured only when the worker's URL has testHooks=1: the module fails at the next call. */
   TEST_BREAK: 'test-break',
   /** Test hook (testHooks=1): the next frame never returns, as when one of the module's threads panics. */
@@ -49,8 +53,12 @@ export const FromWorker = Object.freeze({
   STATE: 'state',
   /** {config?}: the map was emptied (reset, replay, new config, rebuilt after a failure). */
   RESET: 'reset',
-  /** {what: 'ply'|'trajectory', bytes|text, name} or {what, unavailable: true} (the module has failed: the page uses its own copy). */
+  /** {what: 'ply'|'trajectory'|'mesh-glb'|'mesh-ply'|'points-glb', bytes|text, name} or {what, unavailable: true} (the module has failed: the page uses its own copy; none for meshes) or {what, error}. */
   EXPORT: 'export',
+  /** {fraction (0..1), purpose: 'download'|'view'}: meshing under way. */
+  MESH_PROGRESS: 'mesh-progress',
+  /** {positions, normals, colours, indices} (parseGlb's arrays, world frame, metres) or {unavailable: true} or {error}: the mesh for the view. */
+  MESH: 'mesh',
   /** {message, frames}: the wasm module failed; playback stopped, it is rebuilt at the next action. */
   MODULE_FAILED: 'module-failed',
   /** {message}: the worker itself cannot go on (module not loadable, internal error). */

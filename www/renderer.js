@@ -7,6 +7,7 @@
 // contents copied GPU-side) and are updated with bufferSubData over the
 // changed surfel range only.
 import { vec3, multiply, invertRigid, transformPoint, column, perspective, lookAt } from './math3d.js';
+import { MeshView } from './mesh-view.js';
 
 const SURFEL_VS = `#version 300 es
 layout(location = 0) in vec3 aPosition;
@@ -193,6 +194,8 @@ export class Renderer {
     this.trajectory = new Lines(gl, [1.0, 0.55, 0.1, 1], gl.LINE_STRIP);
     this.groundTruth = new Lines(gl, [0.2, 0.9, 0.3, 1], gl.LINE_STRIP);
     this.frustum = new Lines(gl, [1.0, 0.85, 0.2, 1], gl.LINES);
+    this.mesh = new MeshView(gl);
+    this.showMesh = false; // draw the mesh (setMesh) instead of the splats
 
     this.mode = 'rgb';
     this.sizeScale = 1;
@@ -303,6 +306,7 @@ export class Renderer {
     this.trajectory.clear();
     this.groundTruth.clear();
     this.frustum.clear();
+    this.mesh.clear();
     this.currentPose = null;
     this.firstPose = null;
     this.viewInitialised = false;
@@ -379,6 +383,17 @@ export class Renderer {
       this.initialView(this.firstPose ?? this.currentPose);
       this.dirty = true;
     }
+  }
+
+  /** mesh: parseGlb's arrays (www/mesh-view.js), in the display frame. */
+  setMesh(mesh) {
+    this.mesh.set(mesh);
+    this.dirty = true;
+  }
+
+  setShowMesh(on) {
+    this.showMesh = Boolean(on);
+    this.dirty = true;
   }
 
   setMode(mode) {
@@ -570,7 +585,9 @@ export class Renderer {
     const proj = new Float32Array(perspective(FOVY, w / h, 0.01, far));
     const view = new Float32Array(this.viewMatrix());
 
-    if (this.count > 0) {
+    if (this.showMesh) {
+      this.mesh.draw(view, proj);
+    } else if (this.count > 0) {
       const { program, uniforms: u } = this.surfelProgram;
       gl.useProgram(program);
       gl.uniformMatrix4fv(u.uView, false, view);

@@ -17,6 +17,7 @@
 // Messages: ToWorker and FromWorker in protocol.js.
 import { ToWorker, FromWorker, ToReader } from './protocol.js';
 import { openSource } from './sequence.js';
+import { parseGlb } from './mesh-view.js';
 import { readAndDecodeColour, PREVIEW_WIDTH, PREVIEW_HEIGHT } from './colour-decode.js';
 
 let wasm = null;
@@ -82,6 +83,16 @@ function exportFrom(fromSlam) {
     fail(e);
     return undefined;
   }
+}
+
+/** A progress callback for exportMesh: posts MESH_PROGRESS at most every 5 %. */
+function meshProgress(purpose) {
+  let last = -1;
+  return (fraction) => {
+    if (fraction < 1 && fraction - last < 0.05) return;
+    last = fraction;
+    post({ type: FromWorker.MESH_PROGRESS, fraction, purpose });
+  };
 }
 
 // All work touching the module runs one job at a time, in message order.
@@ -716,6 +727,40 @@ self.onmessage = async (event) => {
         const text = exportFrom((s) => (s ? s.trajectoryTum() : ''));
         if (text !== undefined) post({ type: FromWorker.EXPORT, what: 'trajectory', text, name: seq?.name });
         else post({ type: FromWorker.EXPORT, what: 'trajectory', unavailable: true, name: seq?.name });
+      });
+      break;
+    case ToWorker.EXPORT_MESH:
+      serial(() => {
+        const format = msg.format;
+        const what = format === 'glb-points' ? 'points-glb' : `mesh-${format}`;
+        let bytes;
+        try {
+          bytes = exportFrom((s) => {
+            if (!s) return new Uint8Array();
+            if (format === 'glb-points') return s.exportGlbPoints().slice();
+            return s.exportMesh({ format }, meshProgress('download')).slice();
+          });
+        } catch (e) {
+          if (isModuleFailure(e)) throw e;
+          post({ type: FromWorker.EXPORT, what, error: errorText(e), name: seq?.name });
+          return;
+        }
+        if (bytes) post({ type: FromWorker.EXPORT, what, bytes, name: seq?.name }, [bytes.buffer]);
+        else post({ type: FromWorker.EXPORT, what, unavailable: true, name: seq?.name });
+      });
+      break;
+    case ToWorker.VIEW_MESH:
+      serial(() => {
+        let mesh;
+        try {
+          mesh = exportFrom((s) => (s ? parseGlb(s.exportMesh({ format: 'glb' }, meshProgress('view'))) : { positions: new Float32Array(0), normals: new Float32Array(0), colours: new Uint8Array(0), indices: new Uint32Array(0) }));
+        } catch (e) {
+          if (isModuleFailure(e)) throw e;
+          post({ type: FromWorker.MESH, error: errorText(e) });
+          return;
+        }
+        if (!mesh) post({ type: FromWorker.MESH, unavailable: true });
+        else post({ type: FromWorker.MESH, ...mesh }, [mesh.positions.buffer, mesh.normals.buffer, mesh.colours.buffer, mesh.indices.buffer]);
       });
       break;
     case ToWorker.TEST_BREAK:
