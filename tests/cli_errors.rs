@@ -9,26 +9,13 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+use common::scratch;
+
 use image::{imageops::FilterType, DynamicImage, ImageFormat};
 
 const CLIP: &str = "www/sample/tum_fr3_teddy_clip";
 const FRAMES: usize = 4;
-
-/// A scratch directory removed on drop.
-struct Scratch(PathBuf);
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn scratch(name: &str) -> Scratch {
-    let dir = std::env::temp_dir().join(format!("surfel-slam-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    Scratch(dir)
-}
 
 /// A TUM folder with the clip's first `FRAMES` frames; returns (dir, colour paths, depth paths).
 fn tum_clip(root: &Path, name: &str) -> (PathBuf, Vec<String>, Vec<String>) {

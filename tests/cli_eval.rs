@@ -12,26 +12,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod common;
-use common::shared_dataset;
+use common::{scratch, shared_dataset};
 use surfel_slam::dataset::trajectory::{format_tum, parse_tum};
 
 const CLIP_GT: &str = "www/sample/tum_fr3_teddy_clip/groundtruth.txt";
-
-/// A scratch directory removed on drop.
-struct Scratch(PathBuf);
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn scratch(name: &str) -> Scratch {
-    let dir = std::env::temp_dir().join(format!("surfel-slam-eval-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    Scratch(dir)
-}
 
 struct Answer {
     code: i32,

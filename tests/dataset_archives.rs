@@ -12,6 +12,7 @@
 //! `--nocapture` prints the measured numbers.
 
 mod common;
+use common::scratch;
 
 use std::fs::File;
 use std::io::Write;
@@ -19,33 +20,6 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use surfel_slam::dataset::{list_files, DatasetSource, Sequence};
-
-/// A scratch directory removed on drop.
-struct Scratch(PathBuf);
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn scratch(name: &str) -> Scratch {
-    let dir =
-        std::env::temp_dir().join(format!("surfel-slam-archive-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    Scratch(dir)
-}
-
-/// ../shared/data/<name>, or `None` (skip) when absent; under `CI=true` its
-/// absence is a failure, so CI cannot pass without running these tests.
-fn shared(name: &str) -> Option<PathBuf> {
-    let dir = common::shared_dataset(name);
-    if dir.is_none() && std::env::var("CI").is_ok_and(|v| v == "true") {
-        panic!("../shared/data/{name} is required when CI=true");
-    }
-    dir
-}
 
 /// Packs `dir` as `<out>` under the top folder `top` (as downloads are).
 fn pack(dir: &Path, top: &str, out: &Path) {
@@ -128,7 +102,7 @@ fn summary_count(a: &Answer, word: &str) -> usize {
 
 #[test]
 fn teddy_archives_give_the_folders_ate() {
-    let Some(teddy) = shared("tum_fr3_teddy") else {
+    let Some(teddy) = common::shared_dataset("tum_fr3_teddy") else {
         return;
     };
     let tmp = scratch("teddy");
@@ -241,7 +215,7 @@ fn corrupt_and_truncated_archives_are_refused_by_name() {
 
 #[test]
 fn half_copied_teddy_skips_the_missing_frames() {
-    let Some(teddy) = shared("tum_fr3_teddy") else {
+    let Some(teddy) = common::shared_dataset("tum_fr3_teddy") else {
         return;
     };
     let tmp = scratch("half");

@@ -16,16 +16,7 @@ const VERTEX_BYTES: usize = 6 * 4 + 3 + 2 * 4;
 /// present in every array are written.
 #[must_use]
 pub fn write_ply(map: &SurfelMap) -> Vec<u8> {
-    let n = [
-        map.positions.len(),
-        map.normals.len(),
-        map.colours.len(),
-        map.radii.len(),
-        map.confidences.len(),
-    ]
-    .into_iter()
-    .min()
-    .unwrap_or(0);
+    let n = map.common_len();
     let kept = || (0..n).filter(|&i| map.confidences[i] >= 0.0);
     let count = kept().count();
     let header = format!(

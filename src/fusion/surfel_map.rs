@@ -183,6 +183,23 @@ impl SurfelMap {
         self.positions.len()
     }
 
+    /// Length every array has at least: [`SurfelMap::len`] for a sound map.
+    /// Readers that index all arrays by one index stop here, so a map whose
+    /// public arrays were edited to different lengths cannot make them panic.
+    #[must_use]
+    pub fn common_len(&self) -> usize {
+        [
+            self.positions.len(),
+            self.normals.len(),
+            self.colours.len(),
+            self.radii.len(),
+            self.confidences.len(),
+        ]
+        .into_iter()
+        .min()
+        .unwrap_or(0)
+    }
+
     /// Number of surfels the map holds: [`SurfelMap::len`] without the
     /// absorbed ones awaiting removal. The PLY export writes exactly these.
     #[must_use]

@@ -118,16 +118,7 @@ impl Grid {
         self.voxel = voxel;
         let reach = config.support_voxels.max(config.tangential_voxels) * voxel;
         let block_m = voxel * B as f32;
-        let n = [
-            map.positions.len(),
-            map.normals.len(),
-            map.colours.len(),
-            map.radii.len(),
-            map.confidences.len(),
-        ]
-        .into_iter()
-        .min()
-        .unwrap_or(0);
+        let n = map.common_len();
 
         // 1. Surfels grouped by the block their centre lies in.
         self.sorted.clear();
