@@ -8,6 +8,8 @@ import { fileURLToPath } from 'node:url';
 import { chromium } from 'playwright-core';
 import { startServer } from '../../www/serve.mjs';
 
+export { decodePng } from '../node/png.mjs';
+
 export const REPO = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '../..');
 export const SHARED_DATA = path.resolve(REPO, '../shared/data');
 export const SCREENSHOTS = path.join(REPO, 'target', 'browser-screenshots');
@@ -146,57 +148,6 @@ function crc32(buf) {
   return (c ^ 0xffffffff) >>> 0;
 }
 
-/** Decodes an 8-bit, non-interlaced PNG (grey, grey+alpha, RGB, RGBA) to {width, height, channels, data}. */
-export function decodePng(buffer) {
-  const sig = Buffer.from([137, 80, 78, 71, 13, 10, 26, 10]);
-  if (!buffer.subarray(0, 8).equals(sig)) throw new Error('not a PNG');
-  let offset = 8;
-  let width, height, bitDepth, colourType, interlace;
-  const idat = [];
-  while (offset < buffer.length) {
-    const length = buffer.readUInt32BE(offset);
-    const type = buffer.toString('latin1', offset + 4, offset + 8);
-    const data = buffer.subarray(offset + 8, offset + 8 + length);
-    if (type === 'IHDR') {
-      width = data.readUInt32BE(0);
-      height = data.readUInt32BE(4);
-      bitDepth = data[8];
-      colourType = data[9];
-      interlace = data[12];
-    } else if (type === 'IDAT') idat.push(data);
-    else if (type === 'IEND') break;
-    offset += 12 + length;
-  }
-  const channels = { 0: 1, 4: 2, 2: 3, 6: 4 }[colourType];
-  if (bitDepth !== 8 || !channels || interlace !== 0) {
-    throw new Error(`unsupported PNG (bit depth ${bitDepth}, colour type ${colourType}, interlace ${interlace})`);
-  }
-  const raw = zlib.inflateSync(Buffer.concat(idat));
-  const stride = width * channels;
-  const out = Buffer.alloc(stride * height);
-  for (let y = 0; y < height; y++) {
-    const filter = raw[y * (stride + 1)];
-    const line = raw.subarray(y * (stride + 1) + 1, (y + 1) * (stride + 1));
-    const row = out.subarray(y * stride, (y + 1) * stride);
-    const prev = y > 0 ? out.subarray((y - 1) * stride, y * stride) : null;
-    for (let x = 0; x < stride; x++) {
-      const a = x >= channels ? row[x - channels] : 0;
-      const b = prev ? prev[x] : 0;
-      const c = prev && x >= channels ? prev[x - channels] : 0;
-      let v = line[x];
-      if (filter === 1) v += a;
-      else if (filter === 2) v += b;
-      else if (filter === 3) v += (a + b) >> 1;
-      else if (filter === 4) {
-        const p = a + b - c;
-        const pa = Math.abs(p - a), pb = Math.abs(p - b), pc = Math.abs(p - c);
-        v += pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
-      } else if (filter !== 0) throw new Error(`bad PNG filter ${filter}`);
-      row[x] = v & 0xff;
-    }
-  }
-  return { width, height, channels, data: out };
-}
 
 /** Encodes an 8-bit greyscale PNG. */
 export function encodeGreyPng(width, height, grey) {

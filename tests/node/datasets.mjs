@@ -8,6 +8,7 @@ import os from 'node:os';
 import path from 'node:path';
 import zlib from 'node:zlib';
 import { fileURLToPath } from 'node:url';
+import { crc32, decodePng } from './png.mjs';
 
 export const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '../..');
 export const CLIP = path.join(ROOT, 'www/sample/tum_fr3_teddy_clip');
@@ -24,17 +25,6 @@ export function listTree(dir, rel = '') {
 }
 
 // ---- archives -------------------------------------------------------------------
-
-const CRC_TABLE = Array.from({ length: 256 }, (_, n) => {
-  let c = n;
-  for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
-  return c >>> 0;
-});
-function crc32(buf) {
-  let c = 0xffffffff;
-  for (const b of buf) c = CRC_TABLE[(c ^ b) & 0xff] ^ (c >>> 8);
-  return (c ^ 0xffffffff) >>> 0;
-}
 
 /** A ustar archive of `files` ([name, Buffer]). */
 export function tarBytes(files) {
@@ -136,46 +126,10 @@ export function tumSubset(src, frames, dst) {
 
 /** Decodes a non-interlaced 16-bit greyscale PNG: { width, height, data: Uint16Array }. */
 export function decodeDepthPng(buffer) {
-  let offset = 8;
-  let width, height, bitDepth, colourType, interlace;
-  const idat = [];
-  while (offset < buffer.length) {
-    const length = buffer.readUInt32BE(offset);
-    const type = buffer.toString('latin1', offset + 4, offset + 8);
-    const body = buffer.subarray(offset + 8, offset + 8 + length);
-    if (type === 'IHDR') [width, height, bitDepth, colourType, interlace] = [body.readUInt32BE(0), body.readUInt32BE(4), body[8], body[9], body[12]];
-    else if (type === 'IDAT') idat.push(body);
-    else if (type === 'IEND') break;
-    offset += 12 + length;
-  }
-  if (bitDepth !== 16 || colourType !== 0 || interlace !== 0) throw new Error('expected a 16-bit greyscale PNG');
-  const raw = zlib.inflateSync(Buffer.concat(idat));
-  const bpp = 2;
-  const stride = width * bpp;
-  const out = Buffer.alloc(stride * height);
-  for (let y = 0; y < height; y++) {
-    const filter = raw[y * (stride + 1)];
-    const line = raw.subarray(y * (stride + 1) + 1, (y + 1) * (stride + 1));
-    const row = out.subarray(y * stride, (y + 1) * stride);
-    const prev = y > 0 ? out.subarray((y - 1) * stride, y * stride) : null;
-    for (let x = 0; x < stride; x++) {
-      const a = x >= bpp ? row[x - bpp] : 0;
-      const b = prev ? prev[x] : 0;
-      const c = prev && x >= bpp ? prev[x - bpp] : 0;
-      let v = line[x];
-      if (filter === 1) v += a;
-      else if (filter === 2) v += b;
-      else if (filter === 3) v += (a + b) >> 1;
-      else if (filter === 4) {
-        const p = a + b - c;
-        const pa = Math.abs(p - a), pb = Math.abs(p - b), pc = Math.abs(p - c);
-        v += pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
-      }
-      row[x] = v & 0xff;
-    }
-  }
+  const { width, height, channels, bitDepth, data: bytes } = decodePng(buffer);
+  if (bitDepth !== 16 || channels !== 1) throw new Error('expected a 16-bit greyscale PNG');
   const data = new Uint16Array(width * height);
-  for (let i = 0; i < data.length; i++) data[i] = out.readUInt16BE(2 * i);
+  for (let i = 0; i < data.length; i++) data[i] = bytes.readUInt16BE(2 * i);
   return { width, height, data };
 }
 
