@@ -141,6 +141,7 @@ pub struct FeatureExtractor {
     pattern: SteeredPattern,
     prepared: PreparedFrame,
     smoothed: Vec<f32>,
+    smooth_scratch: Vec<f32>,
     tmp: Vec<f32>,
     scores: Vec<f32>,
     corners: Vec<Vec2>,
@@ -163,6 +164,7 @@ impl FeatureExtractor {
             pattern: SteeredPattern::new(),
             prepared: PreparedFrame::default(),
             smoothed: Vec::new(),
+            smooth_scratch: Vec::new(),
             tmp: Vec::new(),
             scores: Vec::new(),
             corners: Vec::new(),
@@ -292,8 +294,7 @@ impl FeatureExtractor {
         self.tmp.clear();
         self.tmp.extend(level.pixels.iter().map(|p| p[0]));
         let grey = std::mem::take(&mut self.tmp);
-        let mut scratch = Vec::new();
-        smooth_into(&grey, w, h, &mut scratch, &mut self.smoothed);
+        smooth_into(&grey, w, h, &mut self.smooth_scratch, &mut self.smoothed);
         let (pattern, smoothed) = (&self.pattern, &self.smoothed);
         let spread = self.config.max_depth_spread;
         let lifted = self.corners.par_iter().filter_map(|c| {
