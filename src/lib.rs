@@ -14,6 +14,7 @@ pub mod features;
 pub mod flow;
 pub mod frame;
 pub mod fusion;
+pub mod loop_closure;
 pub mod mesh;
 pub mod pipeline;
 pub mod preprocess;
