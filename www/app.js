@@ -1,14 +1,20 @@
 // UI wiring: starts the worker, plays the bundled sample on first load, routes
 // worker messages to the renderer, the input views and the statistics, and
 // keeps window.surfelSlamStatus (read by the browser tests) up to date.
+// Beside this file: camera-settings.js (the settings panel), display-frame.js
+// (how the map and the ground truth are shown), downloads.js (saved files),
+// view-controls.js (the view options and the panel's scroll hint).
 import { Renderer } from './renderer.js';
 import { InputViews } from './views.js';
 import { Stats } from './stats.js';
-import { Plots, STAGE_COLOURS } from './plots.js';
+import { Plots } from './plots.js';
 import { fromManifest, setupSequenceInput } from './sequence.js';
-import { poseFromTq, multiply, invertRigid, transformPoint } from './math3d.js';
 import { ToWorker, FromWorker } from './protocol.js';
 import { MapMirror } from './map-mirror.js';
+import { CameraSettings } from './camera-settings.js';
+import { DisplayFrame, GroundTruthTrack } from './display-frame.js';
+import { downloadMirror, isMeshExport, saveExport } from './downloads.js';
+import { wireViewControls } from './view-controls.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -66,19 +72,10 @@ const ui = {
   viewMesh: $('view-mesh'),
   message: $('message'),
   messageText: $('message-text'),
-  preset: $('preset'),
-  fx: $('fx'),
-  fy: $('fy'),
-  cx: $('cx'),
-  cy: $('cy'),
   depthScale: $('depth-scale'),
-  tracker: $('tracker'),
-  half: $('half-resolution'),
 };
 
-let presets = [];
-let sequence = null; // {name, kind, frameCount, groundTruth}
-let gtAnchored = false;
+let sequence = null; // {name, kind, preset, frameCount, groundTruth: GroundTruthTrack}
 let workerPlaying = false;
 let run = { first: 0, frames: 0 }; // wall clock of this playback run
 
@@ -117,6 +114,26 @@ const views = new InputViews($('colour-view'), $('depth-view'), $('depth-caption
 views.clear();
 const stats = new Stats($('stats'));
 const plots = new Plots({ timing: $('plot-timing'), surfels: $('plot-surfels'), error: $('plot-error') });
+const settings = new CameraSettings(
+  {
+    preset: $('preset'),
+    fx: $('fx'),
+    fy: $('fy'),
+    cx: $('cx'),
+    cy: $('cy'),
+    depthScale: ui.depthScale,
+    tracker: $('tracker'),
+    half: $('half-resolution'),
+    apply: $('apply-intrinsics'),
+  },
+  {
+    views,
+    hasSequence: () => !!sequence,
+    onError: reportError,
+    // New camera or tracker settings: the worker restarts the sequence with them and plays.
+    onApply: (config) => act({ type: ToWorker.CONFIG, config }),
+  },
+);
 
 function syncStatus() {
   status.framesProcessed = stats.framesProcessed;
@@ -216,13 +233,6 @@ function act(msg) {
   send(msg);
 }
 
-/** A download from the page's copy (the module has failed). */
-function downloadMirror(what) {
-  const base = (sequence?.name || 'surfel-slam').replace(/[^\w.-]+/g, '_');
-  if (what === 'ply') download(new Blob([mirror.ply()], { type: 'application/octet-stream' }), `${base}_map.ply`);
-  else download(new Blob([mirror.trajectoryTum()], { type: 'text/plain' }), `${base}_trajectory.txt`);
-}
-
 function setControls() {
   const has = !!sequence && status.ready;
   ui.play.disabled = !has;
@@ -235,78 +245,13 @@ function setControls() {
   ui.play.title = workerPlaying ? 'stop after this frame' : status.done ? 'empty the map and play again from the first frame' : '';
 }
 
-function fillPresetSelect() {
-  ui.preset.replaceChildren(
-    ...presets.map((p) => new Option(`${p.name} (${p.width}×${p.height})`, p.name)),
-    new Option('custom', 'custom'),
-  );
-}
-
-function showIntrinsics(name, overrides = {}) {
-  const p = presets.find((x) => x.name === name) ?? {};
-  const v = { ...p, ...overrides };
-  ui.preset.value = presets.some((x) => x.name === name) ? name : 'custom';
-  // Presets arrive as f32 values (535.4000244...): show them as published.
-  const tidy = (x) => (Number.isFinite(x) ? String(Number(x.toFixed(4))) : '');
-  ui.fx.value = tidy(v.fx);
-  ui.fy.value = tidy(v.fy);
-  ui.cx.value = tidy(v.cx);
-  ui.cy.value = tidy(v.cy);
-  ui.depthScale.value = tidy(v.depthScale);
-  if (v.depthMin !== undefined && v.depthMax !== undefined) views.setDepthRange(v.depthMin, Math.min(v.depthMax, 6));
-}
-
-function currentIntrinsics() {
-  const base = presets.find((x) => x.name === ui.preset.value) ?? presets.find((x) => x.name === sequence?.preset) ?? {};
-  const num = (el, fallback) => (el.value === '' || !Number.isFinite(Number(el.value)) ? fallback : Number(el.value));
-  return {
-    preset: base.name,
-    width: base.width ?? 640,
-    height: base.height ?? 480,
-    fx: num(ui.fx, base.fx),
-    fy: num(ui.fy, base.fy),
-    cx: num(ui.cx, base.cx),
-    cy: num(ui.cy, base.cy),
-    depthScale: num(ui.depthScale, base.depthScale),
-    tracker: ui.tracker.value,
-    halfResolution: ui.half.checked,
-  };
-}
-
-/** The choices on the page that a newly opened sequence keeps. */
-const pageOptions = () => ({ tracker: ui.tracker.value, halfResolution: ui.half.checked });
-
 // ---- display frame -----------------------------------------------------------------
-// The map and the poses are in the dataset's convention. With a negative fy
-// (ICL-NUIM) the camera's y axis points up in the image, so the map is the
-// mirror image of the scene: shown as it is, it is upside down and
-// mirrored. The page shows it through F = diag(1, -1, 1) (points p -> F p,
-// poses T -> F T F), which is the map a camera with a positive fy would have
-// built: upright, right-handed. The downloads keep the dataset's convention.
-let flipY = false;
-const F = new Float64Array([1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
-const IDENTITY = new Float64Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
 
-/** config: a Slam config ({preset, fy?, ...}); fy, when absent, is the preset's. */
+const display = new DisplayFrame();
 function setDisplayFrame(config) {
-  const fy = config?.fy ?? presets.find((p) => p.name === config?.preset)?.fy;
-  if (Number.isFinite(fy)) flipY = fy < 0;
-  status.displayFlipY = flipY;
+  display.setFromConfig(config, settings.presets);
+  status.displayFlipY = display.flipY;
 }
-
-const displayPose = (pose) => (flipY ? multiply(F, multiply(pose, F)) : pose);
-
-/** Mirrors a surfel chunk's positions and normals in y, in place (its arrays are this page's own). */
-function displayChunk(chunk) {
-  if (!flipY || !chunk) return chunk;
-  for (const key of ['positions', 'normals']) {
-    const a = chunk[key];
-    for (let i = 1; i < a.length; i += 3) a[i] = -a[i];
-  }
-  return chunk;
-}
-
-const displayIntrinsics = (k) => (flipY ? { ...k, fy: Math.abs(k.fy) } : k);
 
 function clearMap() {
   renderer?.clear();
@@ -317,12 +262,11 @@ function clearMap() {
   status.colourDecoder = null;
   status.framesColourDecodedInBrowser = 0;
   run = { first: 0, frames: 0 };
-  gtAnchored = false;
-  gtAlign = null;
+  sequence?.groundTruth.unanchor();
   status.positionErrorCm = null;
   mirror.clear();
   plots.reset();
-  plots.setGroundTruth(!!sequence?.groundTruth?.length);
+  plots.setGroundTruth(!!sequence?.groundTruth.length);
   status.plotFrames = 0;
   views.clear();
   // The mesh went with the map: back to the splats that will grow again.
@@ -332,48 +276,6 @@ function clearMap() {
   renderer?.setShowMesh(false);
 }
 
-let gtAlign = null; // display-frame transform from the ground truth to the estimate, set at its first pose
-const gtPose = (row) => displayPose(poseFromTq([row[1], row[2], row[3]], [row[4], row[5], row[6], row[7]]));
-
-/** The ground-truth row nearest `timestamp` (rows sorted by time), within the dataset's tolerance, or null. */
-function groundTruthAt(timestamp) {
-  const rows = sequence?.groundTruth;
-  if (!rows?.length) return null;
-  const tolerance = sequence.kind === 'tum' ? 0.02 : 0.5;
-  let lo = 0;
-  let hi = rows.length - 1;
-  while (lo < hi) {
-    const mid = (lo + hi) >> 1;
-    if (rows[mid][0] < timestamp) lo = mid + 1;
-    else hi = mid;
-  }
-  let best = null;
-  for (const i of [lo - 1, lo]) {
-    if (i < 0 || i >= rows.length) continue;
-    const dt = Math.abs(rows[i][0] - timestamp);
-    if (dt <= tolerance && (!best || dt < best.dt)) best = { dt, row: rows[i] };
-  }
-  return best?.row ?? null;
-}
-
-/**
- * Draws the ground truth, anchored to the estimate at the first frame with a
- * ground-truth pose, and returns this frame's position error (metres) against
- * it, or null. `pose`: display frame.
- */
-function groundTruthError(timestamp, pose) {
-  if (!sequence?.groundTruth?.length) return null;
-  const row = groundTruthAt(timestamp);
-  if (!row) return null;
-  if (!gtAnchored) {
-    gtAlign = multiply(pose, invertRigid(gtPose(row)));
-    renderer?.setGroundTruth(sequence.groundTruth.map((r) => transformPoint(gtAlign, transformPoint(flipY ? F : IDENTITY, [r[1], r[2], r[3]]))));
-    gtAnchored = true;
-  }
-  const p = transformPoint(gtAlign, transformPoint(flipY ? F : IDENTITY, [row[1], row[2], row[3]]));
-  return Math.hypot(p[0] - pose[12], p[1] - pose[13], p[2] - pose[14]);
-}
-
 const handlers = {
   [FromWorker.READY](msg) {
     status.ready = true;
@@ -381,8 +283,7 @@ const handlers = {
     status.module = msg.module;
     status.threads = msg.threads;
     status.frameReader = msg.frameReader === true;
-    presets = msg.presets ?? [];
-    fillPresetSelect();
+    settings.setPresets(msg.presets ?? []);
     const label = msg.module === 'threads' ? `threaded wasm · ${msg.threads} threads` : `single-threaded SIMD wasm · ${msg.threads} thread`;
     ui.moduleInfo.textContent = `${label}${status.crossOriginIsolated ? ' · cross-origin isolated' : ''}`;
     ui.moduleInfo.className = `badge ${msg.module}`;
@@ -393,9 +294,9 @@ const handlers = {
 
   [FromWorker.SEQUENCE](msg) {
     if (loading?.name === msg.name) lastLoad = loading;
-    // Sorted by time: groundTruthAt searches it.
-    const groundTruth = [...msg.groundTruth].sort((a, b) => a[0] - b[0]);
+    const groundTruth = new GroundTruthTrack(msg.groundTruth, msg.kind);
     sequence = { name: msg.name, kind: msg.kind, preset: msg.preset, frameCount: msg.frameCount, groundTruth };
+    settings.sequencePreset = msg.preset;
     setDisplayFrame(msg.config);
     status.failed = false;
     status.sequence = msg.name;
@@ -407,7 +308,7 @@ const handlers = {
     $('overlay-credit').hidden = msg.name !== 'tum_fr3_teddy_clip';
     clearMap();
     const { preset, ...overrides } = msg.config ?? {};
-    showIntrinsics(msg.preset, overrides);
+    settings.show(msg.preset, overrides);
     const gt = msg.groundTruth.length ? `, ground truth ${msg.groundTruth.length} poses` : ', no ground truth';
     ui.sequenceInfo.textContent = `${msg.name} — ${msg.kind}, ${msg.frameCount} frames${gt}, camera ${msg.preset}`;
     setControls();
@@ -422,13 +323,13 @@ const handlers = {
     mirror.update(msg.surfels);
     if (msg.refresh) mirror.update(msg.refresh);
     mirror.addPose(msg.result);
-    const pose = displayPose(msg.result.pose);
+    const pose = display.pose(msg.result.pose);
     if (renderer) {
-      renderer.updateSurfels(displayChunk(msg.surfels));
-      if (msg.refresh) renderer.updateSurfels(displayChunk(msg.refresh));
-      renderer.setCameraPose(pose, displayIntrinsics(currentIntrinsics()));
+      renderer.updateSurfels(display.chunk(msg.surfels));
+      if (msg.refresh) renderer.updateSurfels(display.chunk(msg.refresh));
+      renderer.setCameraPose(pose, display.intrinsics(settings.current()));
     }
-    const error = groundTruthError(msg.timestamp, pose);
+    const error = sequence ? sequence.groundTruth.error(msg.timestamp, pose, display, (points) => renderer?.setGroundTruth(points)) : null;
     status.positionErrorCm = error === null ? status.positionErrorCm : Number((error * 100).toFixed(3));
     plots.add(msg.index, msg.result.timings, stats.surfels, error);
     status.plotFrames = plots.frames;
@@ -502,30 +403,15 @@ const handlers = {
       reportError(`mesh: ${msg.error || 'the SLAM module failed; Play, Step or Reset starts again'}`);
       return;
     }
-    const mesh = displayChunk({ positions: msg.positions, normals: msg.normals, colours: msg.colours, indices: msg.indices });
+    const mesh = display.chunk({ positions: msg.positions, normals: msg.normals, colours: msg.colours, indices: msg.indices });
     renderer?.setMesh(mesh);
     status.meshTriangles = msg.indices.length / 3;
   },
 
   [FromWorker.EXPORT](msg) {
-    if (msg.what.startsWith('mesh-') || msg.what === 'points-glb') {
-      meshDone();
-      if (msg.unavailable || msg.error) {
-        reportError(`${msg.what}: ${msg.error || 'the SLAM module failed; Play, Step or Reset starts again'}`);
-        return;
-      }
-      const base = (msg.name || 'surfel-slam').replace(/[^\w.-]+/g, '_');
-      const [kind, ext] = msg.what.split('-');
-      download(new Blob([msg.bytes], { type: ext === 'glb' ? 'model/gltf-binary' : 'application/octet-stream' }), `${base}_${kind}.${ext}`);
-      return;
-    }
-    if (msg.unavailable) {
-      downloadMirror(msg.what);
-      return;
-    }
-    const base = (msg.name || 'surfel-slam').replace(/[^\w.-]+/g, '_');
-    if (msg.what === 'ply') download(new Blob([msg.bytes], { type: 'application/octet-stream' }), `${base}_map.ply`);
-    else download(new Blob([msg.text], { type: 'text/plain' }), `${base}_trajectory.txt`);
+    if (isMeshExport(msg)) meshDone();
+    const error = saveExport(msg, mirror, sequence?.name);
+    if (error) reportError(error);
   },
 
   [FromWorker.FATAL](msg) {
@@ -545,17 +431,6 @@ function onWorkerMessage(event) {
 }
 startWorker();
 
-function download(blob, name) {
-  const url = URL.createObjectURL(blob);
-  const a = document.createElement('a');
-  a.href = url;
-  a.download = name;
-  document.body.append(a);
-  a.click();
-  a.remove();
-  setTimeout(() => URL.revokeObjectURL(url), 10_000);
-}
-
 // ---- controls ------------------------------------------------------------------------
 
 ui.play.addEventListener('click', () => {
@@ -567,9 +442,9 @@ ui.play.addEventListener('click', () => {
 });
 ui.step.addEventListener('click', () => act({ type: ToWorker.STEP }));
 ui.reset.addEventListener('click', () => act({ type: ToWorker.RESET }));
-ui.ply.addEventListener('click', () => (status.failed ? downloadMirror('ply') : send({ type: ToWorker.EXPORT_PLY })));
+ui.ply.addEventListener('click', () => (status.failed ? downloadMirror(mirror, 'ply', sequence?.name) : send({ type: ToWorker.EXPORT_PLY })));
 ui.trajectory.addEventListener('click', () =>
-  status.failed ? downloadMirror('trajectory') : send({ type: ToWorker.EXPORT_TRAJECTORY }),
+  status.failed ? downloadMirror(mirror, 'trajectory', sequence?.name) : send({ type: ToWorker.EXPORT_TRAJECTORY }),
 );
 
 function meshDone() {
@@ -587,93 +462,9 @@ ui.viewMesh.addEventListener('change', () => {
   if (status.meshView) send({ type: ToWorker.VIEW_MESH });
 });
 
-/** New camera or tracker settings: the worker restarts the sequence with them and plays. */
-function applySettings() {
-  const c = currentIntrinsics();
-  if (![c.fx, c.fy, c.cx, c.cy, c.depthScale].every(Number.isFinite)) {
-    reportError('intrinsics: fx, fy, cx, cy and depth scale must be numbers');
-    return;
-  }
-  act({ type: ToWorker.CONFIG, config: c });
-}
-
-ui.preset.addEventListener('change', () => {
-  if (ui.preset.value === 'custom') return;
-  showIntrinsics(ui.preset.value);
-  if (sequence) applySettings();
-});
-for (const el of [ui.fx, ui.fy, ui.cx, ui.cy, ui.depthScale]) {
-  el.addEventListener('input', () => {
-    ui.preset.value = 'custom';
-  });
-}
-$('apply-intrinsics').addEventListener('click', applySettings);
-ui.tracker.addEventListener('change', () => {
-  if (sequence) applySettings();
-});
-ui.half.addEventListener('change', () => {
-  if (sequence) applySettings();
-});
 $('show-flow').addEventListener('change', (e) => send({ type: ToWorker.FLOW, enabled: e.target.checked }));
 
-// The stage colours of the timing chart.
-$('plot-legend').replaceChildren(
-  ...Object.entries(STAGE_COLOURS).flatMap(([name, colour]) => {
-    const swatch = document.createElement('span');
-    swatch.style.background = colour;
-    return [swatch, document.createTextNode(name)];
-  }),
-);
-
-// A hint naming the panel's sections below the fold (at 1280x800 the
-// camera and view settings are); a click scrolls to the first.
-const panel = $('panel');
-const moreBelow = $('more-below');
-function updateMoreBelow() {
-  const bottom = panel.getBoundingClientRect().bottom - moreBelow.offsetHeight;
-  const hidden = [...panel.querySelectorAll('section h2')].filter((h) => h.getBoundingClientRect().top > bottom);
-  moreBelow.hidden = hidden.length === 0;
-  $('more-below-text').textContent = `below: ${hidden.map((h) => h.textContent).join(' · ')}`;
-  moreBelow.onclick = () => hidden[0]?.scrollIntoView({ behavior: 'smooth', block: 'start' });
-}
-panel.addEventListener('scroll', updateMoreBelow, { passive: true });
-window.addEventListener('resize', updateMoreBelow);
-const panelObserver = new ResizeObserver(updateMoreBelow); // messages and stats change the sections' heights
-for (const el of panel.children) panelObserver.observe(el);
-$('show-plots').addEventListener('change', (e) => {
-  $('plots').hidden = !e.target.checked;
-  plots.setVisible(e.target.checked);
-});
-
-$('colour-mode').addEventListener('change', (e) => renderer?.setMode(e.target.value));
-$('splat-size').addEventListener('input', (e) => {
-  if (renderer) {
-    renderer.sizeScale = Number(e.target.value);
-    renderer.dirty = true;
-  }
-});
-const follow = $('follow');
-follow.addEventListener('change', () => {
-  if (!renderer) return;
-  if (follow.checked) renderer.follow = true;
-  else renderer.leaveFollow();
-  renderer.dirty = true;
-});
-if (renderer) renderer.onFollowChange = (on) => (follow.checked = on);
-for (const [id, key] of [['show-trajectory', 'trajectory'], ['show-gt', 'groundTruth'], ['show-frustum', 'frustum']]) {
-  $(id).addEventListener('change', (e) => {
-    if (!renderer) return;
-    renderer.show[key] = e.target.checked;
-    renderer.dirty = true;
-  });
-}
-$('fit-button').addEventListener('click', () => renderer?.fitView());
-$('view-button').addEventListener('click', () => {
-  if (!renderer) return;
-  follow.checked = false;
-  renderer.follow = false;
-  renderer.resetView();
-});
+wireViewControls({ renderer, plots });
 
 // ---- sequences -----------------------------------------------------------------------
 
@@ -683,7 +474,7 @@ function loadSequence(seq, autoplay) {
   loading = { name: seq.name, entries: seq.entries };
   pendingReload = null;
   ui.sequenceInfo.textContent = `reading ${seq.name} (${seq.entries.length} files)…`;
-  send({ type: ToWorker.LOAD, name: seq.name, entries: seq.entries, autoplay, options: pageOptions() });
+  send({ type: ToWorker.LOAD, name: seq.name, entries: seq.entries, autoplay, options: settings.pageOptions() });
 }
 
 setupSequenceInput({

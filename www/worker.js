@@ -2,8 +2,8 @@
 // (read files, decode the colour image in the browser -> pushRgbaDepthPng:
 // decode depth, track, fuse) and posts each result with a copy of the changed
 // surfel range (transferred, not cloned). The next frames' files are read and
-// their colour decoded by a worker of this worker's (frame-reader.js) while
-// wasm works on the current one; where it cannot start, on this thread.
+// their colour decoded ahead by frame-feed.js (in frame-reader.js's worker
+// where it can start) while wasm works on the current one.
 // A colour image the browser cannot decode (or not exactly: translucent or
 // 16-bit) goes to pushFrame, which decodes both images in wasm and names the
 // problem when there is one.
@@ -14,11 +14,17 @@
 // Slam. Until then the page serves the downloads from its own copy of what
 // it was sent (map-mirror.js).
 //
-// Messages: ToWorker and FromWorker in protocol.js.
-import { ToWorker, FromWorker, ToReader } from './protocol.js';
+// Messages: ToWorker and FromWorker in protocol.js. Beside this file:
+// wasm-module.js (loading the module, telling its failures apart),
+// frame-feed.js (frames read ahead), surfel-copy.js (copies out of wasm
+// memory), worker-exports.js (downloads and the mesh view).
+import { ToWorker, FromWorker } from './protocol.js';
 import { openSource } from './sequence.js';
-import { parseGlb } from './mesh-view.js';
-import { readAndDecodeColour, PREVIEW_WIDTH, PREVIEW_HEIGHT } from './colour-decode.js';
+import { PREVIEW_WIDTH, PREVIEW_HEIGHT } from './colour-decode.js';
+import { errorText, isModuleFailure, startModule as loadModule, toPlain } from './wasm-module.js';
+import { FrameFeed, describeFrameError } from './frame-feed.js';
+import { copyChanged, RollingRefresh, surfelBuffers } from './surfel-copy.js';
+import { answerExport } from './worker-exports.js';
 
 let wasm = null;
 let moduleKind = null;
@@ -30,12 +36,8 @@ let seqCounter = 0;
 let next = 0; // index of the next frame to process
 let playing = false;
 let pumping = false;
-const prefetch = new Map(); // `${seq.id}:${index}` -> promise of the frame's bytes and decoded colour
-const PREFETCH_FRAMES = 3; // frames read and decoded ahead of the one in wasm
-// The frame reader reads files further ahead, READ_BATCH frames at a time,
-// at most 2 * READ_BATCH frames ahead (about 20 MB of PNGs at 640x480).
-const READ_BATCH = 16;
-let readAheadUntil = 0; // frames before this index have been asked for
+// ?colour=wasm in the page URL: wasm decodes colour too (pushFrame), for comparisons.
+const feed = new FrameFeed(new URL(self.location.href).searchParams.get('colour') !== 'wasm');
 let framesOk = 0;
 let surfelCount = 0; // the map's size after the last frame (read without calling into the module)
 let failure = null; // {message}: the module failed; rebuilt at the next action that needs it
@@ -43,23 +45,9 @@ let instance = 0; // module instances started (a failed one is replaced, not reu
 let testBreak = false; // test hook: the next call into the module fails
 let testHang = false; // test hook: the next frame never returns
 const testHooks = new URL(self.location.href).searchParams.get('testHooks') === '1';
-let refreshCursor = 0; // start of the next rolling refresh window (surfel index)
-const REFRESH_SURFELS = 65536;
+const refresh = new RollingRefresh();
 
 const post = (msg, transfer = []) => self.postMessage(msg, transfer);
-const errorText = (e) => (e && e.message ? e.message : String(e));
-
-/**
- * Whether an exception thrown by a call into the module means the module
- * (not the input) failed: a trap (a Rust panic aborts as `unreachable`), or
- * wasm-bindgen's guards on an object a trap left borrowed or freed.
- */
-function isModuleFailure(e) {
-  if (typeof WebAssembly !== 'undefined' && e instanceof WebAssembly.RuntimeError) return true;
-  return /recursive use of an object|null pointer passed to rust|attempted to take ownership|unreachable|memory access out of bounds/i.test(
-    errorText(e),
-  );
-}
 
 /** The module failed: stop and say so (the page keeps what it was sent for the downloads). */
 function fail(e) {
@@ -85,16 +73,6 @@ function exportFrom(fromSlam) {
   }
 }
 
-/** A progress callback for exportMesh: posts MESH_PROGRESS at most every 5 %. */
-function meshProgress(purpose) {
-  let last = -1;
-  return (fraction) => {
-    if (fraction < 1 && fraction - last < 0.05) return;
-    last = fraction;
-    post({ type: FromWorker.MESH_PROGRESS, fraction, purpose });
-  };
-}
-
 // All work touching the module runs one job at a time, in message order.
 let chain = Promise.resolve();
 function serial(job) {
@@ -110,44 +88,9 @@ function serial(job) {
   return chain;
 }
 
-/**
- * Imports and instantiates the module. Each call makes a new instance (the
- * URL differs, so the import is a new module record): a module that trapped
- * may be left with its stack pointer or a lock wherever the trap hit.
- */
-async function importModule(path) {
-  const url = new URL(path, import.meta.url);
-  if (instance > 0) url.searchParams.set('instance', String(instance));
-  const m = await import(url.href);
-  await m.default({ module_or_path: new URL(path.replace(/\.js$/, '_bg.wasm'), import.meta.url) });
-  return m;
-}
-
 async function startModule(notes = []) {
   wasm = null;
-  const forceSingle = new URL(self.location.href).searchParams.get('threads') === '0';
-  if (forceSingle) {
-    notes.push('threads=0 in the page URL: using the single-threaded SIMD module');
-  } else if (self.crossOriginIsolated) {
-    try {
-      const m = await importModule('./pkg/threads/surfel_slam.js');
-      const want = Math.max(1, navigator.hardwareConcurrency || 1);
-      await m.initThreadPool(want);
-      wasm = m;
-      moduleKind = 'threads';
-      threads = typeof m.threadCount === 'function' ? m.threadCount() : want;
-    } catch (e) {
-      notes.push(`threaded module unavailable (${errorText(e)}); using the single-threaded SIMD module`);
-    }
-  } else {
-    notes.push('page is not cross-origin isolated: using the single-threaded SIMD module');
-  }
-  if (!wasm) {
-    const m = await importModule('./pkg/surfel_slam.js');
-    wasm = m;
-    moduleKind = 'simd';
-    threads = typeof m.threadCount === 'function' ? m.threadCount() : 1;
-  }
+  ({ wasm, kind: moduleKind, threads } = await loadModule(instance, notes));
   instance++;
   return notes;
 }
@@ -175,21 +118,8 @@ async function initModule() {
   } catch (e) {
     notes.push(`presets(): ${errorText(e)}`);
   }
-  startReader();
-  post({ type: FromWorker.READY, module: moduleKind, threads, presets, notes, frameReader: reader !== null });
-}
-
-/** Deep copy into plain JS values (wasm-bindgen may hand out Maps or class objects). */
-function toPlain(v) {
-  if (v instanceof Map) return Object.fromEntries([...v].map(([k, x]) => [k, toPlain(x)]));
-  if (Array.isArray(v)) return v.map(toPlain);
-  if (ArrayBuffer.isView(v)) return v.slice();
-  if (v && typeof v === 'object') {
-    const o = {};
-    for (const k of Object.keys(v)) o[k] = toPlain(v[k]);
-    return o;
-  }
-  return v;
+  feed.startReader();
+  post({ type: FromWorker.READY, module: moduleKind, threads, presets, notes, frameReader: feed.inReader });
 }
 
 const presetName = (p) => (typeof p === 'string' ? p : p?.name ?? null);
@@ -225,9 +155,8 @@ function restart() {
   next = 0;
   framesOk = 0;
   surfelCount = 0;
-  refreshCursor = 0;
-  prefetch.clear();
-  readAheadUntil = 0;
+  refresh.restart();
+  feed.restart();
 }
 
 /** Never calls into the module: it must work when the module has failed. */
@@ -289,15 +218,9 @@ async function load({ name, entries, autoplay, options }) {
     return;
   }
   const groundTruth = (parsed.groundTruth || []).map((row) => Array.from(row));
-  seq = {
-    id: ++seqCounter,
-    name,
-    kind: parsed.kind,
-    source,
-    frames: parsed.frames,
-    gtTum: parsed.groundTruthTum || (groundTruth.length ? groundTruth.map((r) => r.join(' ')).join('\n') + '\n' : null),
-  };
-  readerSource(seq.id, entries);
+  // Slam.ate reads the ground truth as TUM text ('' when there is none).
+  seq = { id: ++seqCounter, name, kind: parsed.kind, source, frames: parsed.frames, gtTum: parsed.groundTruthTum || null };
+  feed.setSequence(seq.id, entries, source, seq.frames);
   post({
     type: FromWorker.SEQUENCE,
     name,
@@ -315,109 +238,6 @@ async function load({ name, entries, autoplay, options }) {
 
 // ---- the frame loop -----------------------------------------------------------
 
-// ---- reading frames: in frame-reader.js's worker when it runs ----------------
-
-let reader = null; // the frame reader's Worker; null: read on this thread
-// ?colour=wasm in the page URL: wasm decodes colour too (pushFrame), for comparisons.
-const browserColour = new URL(self.location.href).searchParams.get('colour') !== 'wasm';
-const readerWaiting = new Map(); // `${seq.id}:${index}` -> {resolve, reject, source, frame}
-
-function startReader() {
-  if (typeof Worker !== 'function') return;
-  try {
-    reader = new Worker(new URL('./frame-reader.js', import.meta.url), { type: 'module' });
-  } catch {
-    reader = null;
-    return;
-  }
-  reader.onmessage = ({ data }) => {
-    const key = `${data.id}:${data.index}`;
-    const waiting = readerWaiting.get(key);
-    if (!waiting) return; // the sequence was replaced or reset meanwhile
-    readerWaiting.delete(key);
-    if (data.error !== undefined) waiting.reject(new Error(data.error));
-    else waiting.resolve({ colourBuf: data.colourBuf, depthBuf: data.depthBuf, decoded: data.decoded });
-  };
-  reader.onerror = (e) => {
-    // The reader cannot run (or died): read on this thread from now on.
-    e.preventDefault?.();
-    reader?.terminate();
-    reader = null;
-    for (const [key, w] of readerWaiting) {
-      readerWaiting.delete(key);
-      readAndDecodeColour(w.source, w.frame, browserColour).then(w.resolve, w.reject);
-    }
-  };
-}
-
-/** Tells the reader about a new sequence (before any read of it). */
-function readerSource(id, entries) {
-  readerWaiting.clear();
-  readAheadUntil = 0;
-  reader?.postMessage({ type: ToReader.SOURCE, id, entries });
-}
-
-/** Has the reader read the next batch of files once fewer than READ_BATCH frames are left read ahead of `index`. */
-function readAhead(index) {
-  if (!reader || readAheadUntil > index + READ_BATCH) return;
-  const from = Math.max(readAheadUntil, index + 1);
-  const to = Math.min(seq.frames.length, index + 1 + 2 * READ_BATCH);
-  if (from >= to) return;
-  const paths = seq.frames.slice(from, to).flatMap((f) => [f.colour, f.depth]);
-  reader.postMessage({ type: ToReader.READ_AHEAD, id: seq.id, paths });
-  readAheadUntil = to;
-}
-
-function loadFrame(index) {
-  const frame = seq.frames[index];
-  let promise;
-  if (reader) {
-    const key = `${seq.id}:${index}`;
-    const source = seq.source;
-    promise = new Promise((resolve, reject) => readerWaiting.set(key, { resolve, reject, source, frame }));
-    const { colour, depth } = frame;
-    reader.postMessage({ type: ToReader.READ, id: seq.id, index, colour, depth, decode: browserColour });
-  } else {
-    promise = readAndDecodeColour(seq.source, frame, browserColour);
-  }
-  promise.catch(() => {}); // handled by whoever awaits it
-  return promise;
-}
-
-function readFrame(index) {
-  const key = `${seq.id}:${index}`;
-  const ahead = prefetch.get(key);
-  if (ahead) {
-    prefetch.delete(key);
-    return ahead;
-  }
-  return loadFrame(index);
-}
-
-/** Starts reading (and decoding) the frames after `index` that are not under way yet. */
-function startPrefetch(index) {
-  if (!seq) return;
-  readAhead(index);
-  for (let i = index + 1; i <= index + PREFETCH_FRAMES && i < seq.frames.length; i++) {
-    const key = `${seq.id}:${i}`;
-    if (!prefetch.has(key)) prefetch.set(key, loadFrame(i));
-  }
-}
-
-/** Names the file concerned in an error from pushFrame. */
-function describeFrameError(frame, message) {
-  if (message.includes(frame.depth) || message.includes(frame.colour)) return message;
-  // The module's messages start with what they are about ("depth image must be ...").
-  const head = message.trimStart().toLowerCase();
-  if (head.startsWith('depth')) return `${frame.depth}: ${message}`;
-  if (head.startsWith('colour') || head.startsWith('color')) return `${frame.colour}: ${message}`;
-  const depth = /depth/i.test(message);
-  const colour = /colou?r/i.test(message);
-  if (depth && !colour) return `${frame.depth}: ${message}`;
-  if (colour && !depth) return `${frame.colour}: ${message}`;
-  return `${frame.colour} + ${frame.depth}: ${message}`;
-}
-
 let lastFrameEnd = null; // performance.now() when the last frame was posted (null: not playing)
 
 async function processNext() {
@@ -430,8 +250,7 @@ async function processNext() {
     return;
   }
   const t0 = performance.now();
-  const reading = readFrame(index);
-  startPrefetch(index);
+  const reading = feed.read(index);
   let colourBuf, depthBuf, decoded;
   try {
     ({ colourBuf, depthBuf, decoded } = await reading);
@@ -482,38 +301,11 @@ async function processNext() {
   framesOk++;
 
   // Copy out only the surfels that changed (the views into wasm memory are
-  // invalidated by the next call into the module).
+  // invalidated by the next call into the module), and a window of the rest.
   const count = slam.surfelCount;
   surfelCount = count;
-  let [start, end] = Array.from(slam.takeChangedRange());
-  start = Math.max(0, Math.min(start, count));
-  end = Math.max(start, Math.min(end, count));
-  const surfels = {
-    count,
-    start,
-    end,
-    positions: slam.positions().slice(3 * start, 3 * end),
-    normals: slam.normals().slice(3 * start, 3 * end),
-    colours: slam.colours().slice(4 * start, 4 * end),
-    radii: slam.radii().slice(start, end),
-    confidences: slam.confidences().slice(start, end),
-  };
-  // Merges are not in the changed range (they refine surfels by less than the
-  // noise): refresh a rolling window so merged colours and positions reach
-  // the GPU within count / REFRESH_SURFELS frames.
-  const refreshStart = refreshCursor < count ? refreshCursor : 0;
-  const refreshEnd = Math.min(count, refreshStart + REFRESH_SURFELS);
-  refreshCursor = refreshEnd >= count ? 0 : refreshEnd;
-  const refresh = {
-    count,
-    start: refreshStart,
-    end: refreshEnd,
-    positions: slam.positions().slice(3 * refreshStart, 3 * refreshEnd),
-    normals: slam.normals().slice(3 * refreshStart, 3 * refreshEnd),
-    colours: slam.colours().slice(4 * refreshStart, 4 * refreshEnd),
-    radii: slam.radii().slice(refreshStart, refreshEnd),
-    confidences: slam.confidences().slice(refreshStart, refreshEnd),
-  };
+  const surfels = copyChanged(slam, count);
+  const refreshed = refresh.next(slam, count);
   const tCopy = performance.now();
 
   let ate = null;
@@ -521,7 +313,7 @@ async function processNext() {
   const every = seq.frames.length > 200 ? 10 : 1;
   if (seq.gtTum && (framesOk % every === 0 || last)) {
     try {
-      ate = toPlain(wasm.ateTum(slam.trajectoryTum(), seq.gtTum));
+      ate = toPlain(slam.ate(seq.gtTum));
     } catch (e) {
       if (isModuleFailure(e)) throw e;
       ate = null; // too few associated poses yet
@@ -539,7 +331,7 @@ async function processNext() {
       result: r,
       colourDecoder,
       surfels,
-      refresh,
+      refresh: refreshed,
       ate,
       timing: {
         read: tRead - t0,
@@ -562,16 +354,8 @@ async function processNext() {
       done: last,
     },
     [
-      surfels.positions.buffer,
-      surfels.normals.buffer,
-      surfels.colours.buffer,
-      surfels.radii.buffer,
-      surfels.confidences.buffer,
-      refresh.positions.buffer,
-      refresh.normals.buffer,
-      refresh.colours.buffer,
-      refresh.radii.buffer,
-      refresh.confidences.buffer,
+      ...surfelBuffers(surfels),
+      ...surfelBuffers(refreshed),
       colourBuf,
       depthBuf,
       depthPreview.metres.buffer,
@@ -716,52 +500,10 @@ self.onmessage = async (event) => {
       }
       break;
     case ToWorker.EXPORT_PLY:
-      serial(() => {
-        const bytes = exportFrom((s) => (s ? s.exportPly().slice() : new Uint8Array()));
-        if (bytes) post({ type: FromWorker.EXPORT, what: 'ply', bytes, name: seq?.name }, [bytes.buffer]);
-        else post({ type: FromWorker.EXPORT, what: 'ply', unavailable: true, name: seq?.name });
-      });
-      break;
     case ToWorker.EXPORT_TRAJECTORY:
-      serial(() => {
-        const text = exportFrom((s) => (s ? s.trajectoryTum() : ''));
-        if (text !== undefined) post({ type: FromWorker.EXPORT, what: 'trajectory', text, name: seq?.name });
-        else post({ type: FromWorker.EXPORT, what: 'trajectory', unavailable: true, name: seq?.name });
-      });
-      break;
     case ToWorker.EXPORT_MESH:
-      serial(() => {
-        const format = msg.format;
-        const what = format === 'glb-points' ? 'points-glb' : `mesh-${format}`;
-        let bytes;
-        try {
-          bytes = exportFrom((s) => {
-            if (!s) return new Uint8Array();
-            if (format === 'glb-points') return s.exportGlbPoints().slice();
-            return s.exportMesh({ format }, meshProgress('download')).slice();
-          });
-        } catch (e) {
-          if (isModuleFailure(e)) throw e;
-          post({ type: FromWorker.EXPORT, what, error: errorText(e), name: seq?.name });
-          return;
-        }
-        if (bytes) post({ type: FromWorker.EXPORT, what, bytes, name: seq?.name }, [bytes.buffer]);
-        else post({ type: FromWorker.EXPORT, what, unavailable: true, name: seq?.name });
-      });
-      break;
     case ToWorker.VIEW_MESH:
-      serial(() => {
-        let mesh;
-        try {
-          mesh = exportFrom((s) => (s ? parseGlb(s.exportMesh({ format: 'glb' }, meshProgress('view'))) : { positions: new Float32Array(0), normals: new Float32Array(0), colours: new Uint8Array(0), indices: new Uint32Array(0) }));
-        } catch (e) {
-          if (isModuleFailure(e)) throw e;
-          post({ type: FromWorker.MESH, error: errorText(e) });
-          return;
-        }
-        if (!mesh) post({ type: FromWorker.MESH, unavailable: true });
-        else post({ type: FromWorker.MESH, ...mesh }, [mesh.positions.buffer, mesh.normals.buffer, mesh.colours.buffer, mesh.indices.buffer]);
-      });
+      serial(() => answerExport(msg, exportFrom, seq?.name));
       break;
     case ToWorker.TEST_BREAK:
     case ToWorker.TEST_HANG:

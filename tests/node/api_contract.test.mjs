@@ -3,7 +3,9 @@
 // read: a value of the wrong type is refused naming `config.<key>`), the
 // `SlamConfig` typing in pkg/surfel_slam.d.ts and the "Config keys" table of
 // docs/js-api.md; and the fields of a real frame report, the `FrameReport`
-// typing and the "Frame report" table. See docs/js-api.md, "Adding a config key".
+// typing, the "Frame report" table and the npm README's pushFrame row (the
+// README's config row may list a few keys, but only real ones). See
+// docs/js-api.md, "Adding a config key".
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { existsSync, readFileSync } from 'node:fs';
@@ -80,6 +82,48 @@ function objectFields(value, prefix = '') {
   );
 }
 
+/**
+ * Field paths of a README object sketch like `{ a, b: 'x' | 'y', c (m), d: { e, f } (ms) }`
+ * (`text` starts at its `{`): the first name of each comma-separated element.
+ */
+function sketchFields(text, prefix = '') {
+  const plain = text.replace(/'[^']*'/g, "''");
+  const name = (element) => /^\s*([A-Za-z_$][\w$]*)/.exec(element)?.[1];
+  const out = [];
+  let depth = 0; // of () and []
+  let element = ''; // the current element's text; null once a nested object took it
+  for (let i = 1; i < plain.length; i++) {
+    const c = plain[i];
+    if (depth === 0 && c === '{') {
+      const open = i;
+      for (let braces = 0; i < plain.length; i++) {
+        if (plain[i] === '{') braces++;
+        else if (plain[i] === '}' && --braces === 0) break;
+      }
+      out.push(...sketchFields(plain.slice(open, i + 1), `${prefix}${name(element)}.`));
+      element = null;
+      continue;
+    }
+    if ('(['.includes(c)) depth++;
+    else if (')]'.includes(c)) depth--;
+    if (depth === 0 && (c === ',' || c === '}')) {
+      if (element !== null && name(element)) out.push(prefix + name(element));
+      element = '';
+      if (c === '}') break;
+    } else if (element !== null) {
+      element += c;
+    }
+  }
+  return out;
+}
+
+/** The README API table's cell after the row whose first cell starts with `call`. */
+function readmeRow(md, call) {
+  const line = md.split('\n').find((l) => l.startsWith(`| \`${call}`));
+  assert.ok(line, `pkg-config/README.md has no row for ${call}`);
+  return line;
+}
+
 const sorted = (list) => [...list].sort();
 function sameSet(actual, expected, what) {
   assert.equal(new Set(actual).size, actual.length, `${what}: listed twice: ${actual}`);
@@ -94,6 +138,8 @@ test('tsFields reads nested members and skips comments', () => {
   counts: { d: number; e: [number, number] };
   f: Float64Array;`;
   assert.deepEqual(tsFields(body), ['a', 'b', 'counts.d', 'counts.e', 'f']);
+  const sketch = "{ a, b: 'x, y' | 'z', c (m, [1, 2]), counts: { d, e }, timings: { g } (ms), h }";
+  assert.deepEqual(sketchFields(sketch), ['a', 'b', 'c', 'counts.d', 'counts.e', 'timings.g', 'h']);
 });
 
 test('config keys: parser, typings and docs agree', { skip }, async () => {
@@ -115,6 +161,10 @@ test('config keys: parser, typings and docs agree', { skip }, async () => {
   const documented = docTable(md, 'Config keys');
   sameSet(typed, parser, 'SlamConfig typing vs the keys the parser accepts');
   sameSet(documented, parser, 'docs/js-api.md "Config keys" vs the keys the parser accepts');
+  const row = readmeRow(readFileSync(path.join(ROOT, 'pkg-config/README.md'), 'utf8'), 'new Slam(config)');
+  const readme = sketchFields(row.slice(row.indexOf('`{') + 1));
+  assert.ok(readme.length >= 5, `README config keys: ${readme}`);
+  for (const key of readme) assert.ok(parser.includes(key), `pkg-config/README.md names config key ${key}, which the parser does not accept`);
 
   // Each listed key is read: a value of no accepted type is refused by name.
   for (const key of parser) {
@@ -139,6 +189,8 @@ test('frame report: a real report, the typing and the docs agree', { skip }, asy
     const actual = objectFields(report);
     sameSet(tsFields(interfaceBody(ts, 'FrameReport')), actual, 'FrameReport typing vs a real report');
     sameSet(docTable(md, 'Frame report'), actual, 'docs/js-api.md "Frame report" vs a real report');
+    const row = readmeRow(readFileSync(path.join(ROOT, 'pkg-config/README.md'), 'utf8'), 'slam.pushFrame(');
+    sameSet(sketchFields(row.slice(row.indexOf('`{') + 1)), actual, 'pkg-config/README.md pushFrame row vs a real report');
   } finally {
     slam.free();
   }

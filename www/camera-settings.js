@@ -1,0 +1,88 @@
+// The panel's camera and tracker settings: the preset list, the intrinsics
+// fields, the tracker and half-resolution choices, and the Slam config they
+// make (docs/js-api.md, "Config keys"). Used by app.js.
+
+export class CameraSettings {
+  /**
+   * `el`: {preset, fx, fy, cx, cy, depthScale, tracker, half, apply} elements;
+   * `views`: the input views (their depth colour range follows the preset);
+   * `onApply(config)`: the settings changed while a sequence is open;
+   * `onError(text)`: the fields do not make a config.
+   */
+  constructor(el, { views, onApply, onError, hasSequence }) {
+    this.el = el;
+    this.views = views;
+    this.presets = [];
+    this.sequencePreset = null; // the open sequence's preset: the base of a 'custom' config
+    const apply = () => {
+      const c = this.current();
+      if (![c.fx, c.fy, c.cx, c.cy, c.depthScale].every(Number.isFinite)) onError('intrinsics: fx, fy, cx, cy and depth scale must be numbers');
+      else onApply(c);
+    };
+    el.preset.addEventListener('change', () => {
+      if (el.preset.value === 'custom') return;
+      this.show(el.preset.value);
+      if (hasSequence()) apply();
+    });
+    for (const field of [el.fx, el.fy, el.cx, el.cy, el.depthScale]) {
+      field.addEventListener('input', () => {
+        el.preset.value = 'custom';
+      });
+    }
+    el.apply.addEventListener('click', apply);
+    for (const choice of [el.tracker, el.half]) {
+      choice.addEventListener('change', () => {
+        if (hasSequence()) apply();
+      });
+    }
+  }
+
+  /** presets(): [{name, fx, fy, cx, cy, width, height, depthScale, depthMin, depthMax}]. */
+  setPresets(presets) {
+    this.presets = presets;
+    this.el.preset.replaceChildren(
+      ...presets.map((p) => new Option(`${p.name} (${p.width}×${p.height})`, p.name)),
+      new Option('custom', 'custom'),
+    );
+  }
+
+  /** Shows preset `name`'s intrinsics with `overrides` (a Slam config's fields) on top. */
+  show(name, overrides = {}) {
+    const el = this.el;
+    const p = this.presets.find((x) => x.name === name) ?? {};
+    const v = { ...p, ...overrides };
+    el.preset.value = this.presets.some((x) => x.name === name) ? name : 'custom';
+    // Presets arrive as f32 values (535.4000244...): show them as published.
+    const tidy = (x) => (Number.isFinite(x) ? String(Number(x.toFixed(4))) : '');
+    el.fx.value = tidy(v.fx);
+    el.fy.value = tidy(v.fy);
+    el.cx.value = tidy(v.cx);
+    el.cy.value = tidy(v.cy);
+    el.depthScale.value = tidy(v.depthScale);
+    if (v.depthMin !== undefined && v.depthMax !== undefined) this.views.setDepthRange(v.depthMin, Math.min(v.depthMax, 6));
+  }
+
+  /** The Slam config the fields make. */
+  current() {
+    const el = this.el;
+    const base = this.presets.find((x) => x.name === el.preset.value) ?? this.presets.find((x) => x.name === this.sequencePreset) ?? {};
+    const num = (field, fallback) => (field.value === '' || !Number.isFinite(Number(field.value)) ? fallback : Number(field.value));
+    return {
+      preset: base.name,
+      width: base.width ?? 640,
+      height: base.height ?? 480,
+      fx: num(el.fx, base.fx),
+      fy: num(el.fy, base.fy),
+      cx: num(el.cx, base.cx),
+      cy: num(el.cy, base.cy),
+      depthScale: num(el.depthScale, base.depthScale),
+      tracker: el.tracker.value,
+      halfResolution: el.half.checked,
+    };
+  }
+
+  /** The choices on the page that a newly opened sequence keeps. */
+  pageOptions() {
+    return { tracker: this.el.tracker.value, halfResolution: this.el.half.checked };
+  }
+}
