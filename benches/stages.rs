@@ -204,32 +204,35 @@ fn sparse(c: &mut Criterion) {
     let mut sparse = SparseEstimator::new(FeatureConfig::default()).expect("config");
     let (rgb, vertices) = &views[0];
     sparse
-        .prepare(rgb, vertices, k.width, k.height)
-        .expect("prepares");
+        .keep_frame(rgb, vertices, k.width, k.height)
+        .expect("keeps");
     sparse.current_becomes_reference();
     let (rgb, vertices) = &views[1];
-    c.bench_function("sparse prepare (every frame)", |b| {
+    c.bench_function("sparse keep_frame: copy (every frame)", |b| {
         b.iter(|| {
             sparse
-                .prepare(rgb, vertices, k.width, k.height)
-                .expect("prepares")
-        });
-    });
-    c.bench_function("sparse detect + describe (on demand)", |b| {
-        b.iter(|| {
-            sparse
-                .prepare(rgb, vertices, k.width, k.height)
-                .expect("prepares");
-            sparse.current().len()
+                .keep_frame(rgb, vertices, k.width, k.height)
+                .expect("keeps")
         });
     });
     c.bench_function(
-        "sparse estimate: prepare, detect, match, RANSAC (on demand)",
+        "sparse keep_frame, then prepare + detect + describe (on demand)",
         |b| {
             b.iter(|| {
                 sparse
-                    .prepare(rgb, vertices, k.width, k.height)
-                    .expect("prepares");
+                    .keep_frame(rgb, vertices, k.width, k.height)
+                    .expect("keeps");
+                sparse.current().len()
+            });
+        },
+    );
+    c.bench_function(
+        "sparse estimate: keep_frame, prepare + detect the current frame, match, RANSAC (on demand)",
+        |b| {
+            b.iter(|| {
+                sparse
+                    .keep_frame(rgb, vertices, k.width, k.height)
+                    .expect("keeps");
                 sparse.estimate()
             });
         },

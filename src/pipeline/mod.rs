@@ -228,12 +228,13 @@ impl Pipeline {
     fn track(&mut self) -> Tracked {
         let k = self.config.working_intrinsics();
         // Kept for the sparse estimate (this frame against the last fused
-        // one); corners are found only when an estimate is asked for. A
-        // frame it cannot use leaves the estimator without a current frame.
+        // one): a copy, reduced and searched for corners only when an
+        // estimate is asked for. A frame it cannot use leaves the estimator
+        // without a current frame.
         let level0 = self.pyramid.levels.first().map_or(&[][..], |l| &l.vertices);
         let _ = self
             .sparse
-            .prepare(&self.pyramid.rgb, level0, k.width, k.height);
+            .keep_frame(&self.pyramid.rgb, level0, k.width, k.height);
         match self.last_good {
             None => Tracked {
                 verdict: Verdict::Initialised,

@@ -343,6 +343,37 @@ fn evaluate(
     }
 }
 
+/// What every evaluation of one [`track`] call reads.
+#[derive(Clone, Copy)]
+struct Problem<'a> {
+    pyramid: &'a FramePyramid,
+    prediction: &'a Prediction,
+    workspace: &'a TrackerWorkspace,
+    config: &'a TrackerConfig,
+    /// Levenberg-Marquardt on (rgb and joint modes with `lm_damping`).
+    damped: bool,
+}
+
+impl Problem<'_> {
+    /// [`evaluate`] for this problem.
+    fn evaluate(
+        &self,
+        level_stride: (usize, usize),
+        camera_from_world: &DAffine3,
+        scales: &mut Option<(f64, f64)>,
+    ) -> Evaluation {
+        evaluate(
+            self.pyramid,
+            self.prediction,
+            self.workspace,
+            level_stride,
+            camera_from_world,
+            self.config,
+            scales,
+        )
+    }
+}
+
 /// Aligns the frame in `pyramid` with the model `prediction`, starting from `initial`.
 #[must_use]
 pub fn track(
@@ -357,93 +388,143 @@ pub fn track(
             .rgb
             .prepare(pyramid, prediction, &config.photometric);
     }
-    let workspace = &*workspace;
-    // Plain ICP keeps undamped Gauss-Newton (its behaviour before the other modes existed).
-    let damped = config.mode != TrackerMode::Icp && config.lm_damping;
+    let problem = Problem {
+        pyramid,
+        prediction,
+        workspace: &*workspace,
+        config,
+        // Plain ICP keeps undamped Gauss-Newton (its behaviour before the other modes existed).
+        damped: config.mode != TrackerMode::Icp && config.lm_damping,
+    };
     let mut camera_from_world = initial_world_from_camera.inverse();
     let levels = pyramid.levels.len().min(config.iterations.len());
     let mut finest = Evaluation::default();
     for level in (0..levels).rev() {
-        // Levenberg-Marquardt: `best` is the last accepted estimate and its
-        // system; a step that raises the mean cost is undone and re-solved
-        // from `best` with ten times the damping.
-        let mut best: Option<(DAffine3, Evaluation)> = None;
-        let mut damping = 0.0;
-        let mut scales = None;
-        let iterations = config.iterations[level];
-        let mut iteration = 0;
-        while iteration < iterations {
-            let stride = source_stride((level, iteration, iterations), prediction.valid, config);
-            iteration += 1;
-            let current = evaluate(
-                pyramid,
-                prediction,
-                workspace,
-                (level, stride),
-                &camera_from_world,
-                config,
-                &mut scales,
-            );
-            let (pose, eval) = match best {
-                Some((pose, eval)) if damped && current.mean_cost > eval.mean_cost => {
-                    damping = if damping == 0.0 { 1e-4 } else { damping * 10.0 };
-                    (pose, eval)
-                }
-                _ => {
-                    damping *= 0.1;
-                    if damping < 1e-6 {
-                        damping = 0.0;
-                    }
-                    best = Some((camera_from_world, current));
-                    finest = current;
-                    (camera_from_world, current)
-                }
-            };
-            if eval.system.count < 6 || damping > 1e6 {
-                break;
-            }
-            let Some(xi) = eval.system.solve(damping) else {
-                break;
-            };
-            camera_from_world = se3::exp(&xi) * pose;
-            if xi.iter().all(|v| v.abs() < config.convergence) {
-                if level > 0 || stride == 1 {
-                    break;
-                }
-                // Converged on sparse sources: finish with the dense iterations.
-                iteration = iteration.max(iterations.saturating_sub(config.dense_final_iterations));
-            }
-        }
-        // The last step was never evaluated: keep it only in plain ICP mode,
-        // which had no cost check before (and converges monotonically on
-        // its own); otherwise evaluate it against the best.
-        if damped {
-            if let Some((pose, eval)) = best {
-                let last = evaluate(
-                    pyramid,
-                    prediction,
-                    workspace,
-                    (level, 1 << level),
-                    &camera_from_world,
-                    config,
-                    &mut scales,
-                );
-                if last.mean_cost > eval.mean_cost {
-                    camera_from_world = pose;
-                    finest = eval;
-                } else {
-                    finest = last;
-                }
-            }
+        if let Some(eval) = track_level(&problem, level, &mut camera_from_world) {
+            finest = eval;
         }
     }
+    track_result(
+        &problem,
+        initial_world_from_camera,
+        &camera_from_world,
+        &finest,
+    )
+}
+
+/// The Gauss-Newton (or Levenberg-Marquardt) iterations of one pyramid
+/// level, moving `camera_from_world`; returns the evaluation of the estimate
+/// kept, or `None` when the level ran no iteration.
+fn track_level(
+    problem: &Problem,
+    level: usize,
+    camera_from_world: &mut DAffine3,
+) -> Option<Evaluation> {
+    let config = problem.config;
+    // Levenberg-Marquardt: `best` is the last accepted estimate and its
+    // system; a step that raises the mean cost is undone and re-solved
+    // from `best` with ten times the damping.
+    let mut best: Option<(DAffine3, Evaluation)> = None;
+    let mut kept = None;
+    let mut damping = 0.0;
+    let mut scales = None;
+    let iterations = config.iterations[level];
+    let mut iteration = 0;
+    while iteration < iterations {
+        let stride = source_stride(
+            (level, iteration, iterations),
+            problem.prediction.valid,
+            config,
+        );
+        iteration += 1;
+        let current = problem.evaluate((level, stride), camera_from_world, &mut scales);
+        let (pose, eval) = match best {
+            Some((pose, eval)) if problem.damped && current.mean_cost > eval.mean_cost => {
+                damping = if damping == 0.0 { 1e-4 } else { damping * 10.0 };
+                (pose, eval)
+            }
+            _ => {
+                damping *= 0.1;
+                if damping < 1e-6 {
+                    damping = 0.0;
+                }
+                best = Some((*camera_from_world, current));
+                kept = Some(current);
+                (*camera_from_world, current)
+            }
+        };
+        let Some(xi) = solve_step(&eval.system, damping) else {
+            break;
+        };
+        *camera_from_world = se3::exp(&xi) * pose;
+        if xi.iter().all(|v| v.abs() < config.convergence) {
+            if level > 0 || stride == 1 {
+                break;
+            }
+            // Converged on sparse sources: finish with the dense iterations.
+            iteration = iteration.max(iterations.saturating_sub(config.dense_final_iterations));
+        }
+    }
+    if problem.damped {
+        if let Some(best) = best {
+            kept = Some(check_last_step(
+                problem,
+                level,
+                best,
+                camera_from_world,
+                &mut scales,
+            ));
+        }
+    }
+    kept
+}
+
+/// The step (a camera-frame twist) that `system` asks for with
+/// `damping`, or `None` when the level should stop: too few residuals,
+/// damping run away, or a singular system.
+fn solve_step(system: &se3::NormalEquations, damping: f64) -> Option<se3::Twist> {
+    if system.count < 6 || damping > 1e6 {
+        return None;
+    }
+    system.solve(damping)
+}
+
+/// The last step of a damped level was never evaluated: evaluates it and
+/// goes back to `best` if it raised the cost (plain ICP keeps the last step
+/// unchecked: it had no cost check before and converges monotonically on
+/// its own). Returns the evaluation of the estimate kept.
+fn check_last_step(
+    problem: &Problem,
+    level: usize,
+    (best_pose, best_eval): (DAffine3, Evaluation),
+    camera_from_world: &mut DAffine3,
+    scales: &mut Option<(f64, f64)>,
+) -> Evaluation {
+    let last = problem.evaluate((level, 1 << level), camera_from_world, scales);
+    if last.mean_cost > best_eval.mean_cost {
+        *camera_from_world = best_pose;
+        best_eval
+    } else {
+        last
+    }
+}
+
+/// Statistics and verdict of the final estimate `camera_from_world`, from
+/// `finest`, the evaluation kept at the finest level.
+fn track_result(
+    problem: &Problem,
+    initial_world_from_camera: &DAffine3,
+    camera_from_world: &DAffine3,
+    finest: &Evaluation,
+) -> TrackResult {
+    let config = problem.config;
     // Statistics at the finest level: those of the last dense evaluation
     // (one step before the final estimate, which differs by less than the
     // gates resolve), else of a dense pass at the final estimate.
     let mut last = finest.dense_icp.unwrap_or_default();
-    if let (None, Some(finest_level)) = (finest.dense_icp, pyramid.levels.first()) {
-        let t = RigidF32::from_affine(&camera_from_world);
-        last = icp_step(prediction, 1, finest_level, &t, &config.gates);
+    if let (None, Some(finest_level)) = (finest.dense_icp, problem.pyramid.levels.first()) {
+        let t = RigidF32::from_affine(camera_from_world);
+        last = icp_step(problem.prediction, 1, finest_level, &t, &config.gates);
     }
     let world_from_camera = camera_from_world.inverse();
     let sys = &last.system;
@@ -461,20 +542,7 @@ pub fn track(
         }
         _ => 0.0,
     };
-    let (dt, dr) =
-        se3::motion_magnitude(&(initial_world_from_camera.inverse() * world_from_camera));
-    let lost = if inliers < config.min_inliers || inlier_ratio < config.min_inlier_ratio {
-        Some(LostReason::TooFewInliers)
-    } else if conditioning < config.min_conditioning {
-        Some(LostReason::IllConditioned)
-    } else if residual_rms_m > config.max_residual_m {
-        Some(LostReason::HighResidual)
-    } else if dt > config.max_translation_m || dr.to_degrees() > config.max_rotation_deg {
-        Some(LostReason::ImplausibleMotion)
-    } else {
-        None
-    };
-    TrackResult {
+    let mut result = TrackResult {
         world_from_camera,
         inliers,
         inlier_ratio,
@@ -482,7 +550,31 @@ pub fn track(
         photometric_rms,
         photometric_residuals: photometric.count,
         conditioning,
-        lost,
+        lost: None,
+    };
+    result.lost = verdict(&result, initial_world_from_camera, config);
+    result
+}
+
+/// Why `result` counts as lost, or `None` when it passes the tracker's own
+/// tests (inliers, conditioning, residual, motion from `initial`).
+fn verdict(
+    result: &TrackResult,
+    initial_world_from_camera: &DAffine3,
+    config: &TrackerConfig,
+) -> Option<LostReason> {
+    let (dt, dr) =
+        se3::motion_magnitude(&(initial_world_from_camera.inverse() * result.world_from_camera));
+    if result.inliers < config.min_inliers || result.inlier_ratio < config.min_inlier_ratio {
+        Some(LostReason::TooFewInliers)
+    } else if result.conditioning < config.min_conditioning {
+        Some(LostReason::IllConditioned)
+    } else if result.residual_rms_m > config.max_residual_m {
+        Some(LostReason::HighResidual)
+    } else if dt > config.max_translation_m || dr.to_degrees() > config.max_rotation_deg {
+        Some(LostReason::ImplausibleMotion)
+    } else {
+        None
     }
 }
 
