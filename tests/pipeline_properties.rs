@@ -250,12 +250,12 @@ fn check(slam: &Pipeline, model: &Model, at: &dyn Fn(&str) -> String) {
     let map = slam.map();
     let n = map.len();
     let lens = [
-        map.positions.len(),
-        map.normals.len(),
-        map.colours.len(),
-        map.radii.len(),
-        map.confidences.len(),
-        map.first_seen.len(),
+        map.positions().len(),
+        map.normals().len(),
+        map.colours().len(),
+        map.radii().len(),
+        map.confidences().len(),
+        map.first_seen().len(),
     ];
     assert!(
         lens.iter().all(|&l| l == n),
@@ -263,7 +263,7 @@ fn check(slam: &Pipeline, model: &Model, at: &dyn Fn(&str) -> String) {
         at(&format!("array lengths {lens:?}"))
     );
     assert!(map.all_finite(), "{}", at("a NaN or infinity in the map"));
-    let live = map.confidences.iter().filter(|&&c| c >= 0.0).count();
+    let live = map.confidences().iter().filter(|&&c| c >= 0.0).count();
     assert_eq!(map.live_len(), live, "{}", at("live surfels"));
     assert_eq!(
         map.live_len() + map.absorbed_len(),

@@ -93,20 +93,24 @@ fn gather<T: Copy>(values: &mut [T], source: impl Fn(usize) -> usize, scratch: &
 }
 
 /// All surfels of the model, structure of arrays; index `i` is one surfel.
+///
+/// The arrays are read through slice getters ([`SurfelMap::positions`],
+/// ...) and changed only through methods, so every array keeps the same
+/// length and the block boxes and counters stay in step with them.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SurfelMap {
     /// Centre of each surfel, world frame, metres.
-    pub positions: Vec<Vec3>,
+    pub(crate) positions: Vec<Vec3>,
     /// Unit normal of each surfel, world frame, pointing towards the cameras that saw it.
-    pub normals: Vec<Vec3>,
+    pub(crate) normals: Vec<Vec3>,
     /// Colour, RGBA8 (A = 255).
-    pub colours: Vec<[u8; 4]>,
+    pub(crate) colours: Vec<[u8; 4]>,
     /// Disk radius, metres.
-    pub radii: Vec<f32>,
+    pub(crate) radii: Vec<f32>,
     /// Accumulated confidence (sum of the radial weights of merged measurements).
-    pub confidences: Vec<f32>,
+    pub(crate) confidences: Vec<f32>,
     /// Frame index at which the surfel was created.
-    pub first_seen: Vec<u32>,
+    pub(crate) first_seen: Vec<u32>,
     /// Lowest index changed since the last `take_changed_range`.
     change_lo: usize,
     /// One past the highest index changed since the last `take_changed_range`.
@@ -147,6 +151,46 @@ impl ChunkMut<'_> {
 }
 
 impl SurfelMap {
+    /// Centre of each surfel, world frame, metres.
+    #[must_use]
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    /// Unit normal of each surfel, world frame, pointing towards the cameras
+    /// that saw it.
+    #[must_use]
+    pub fn normals(&self) -> &[Vec3] {
+        &self.normals
+    }
+
+    /// Colour of each surfel, RGBA8 (A = 255).
+    #[must_use]
+    pub fn colours(&self) -> &[[u8; 4]] {
+        &self.colours
+    }
+
+    /// Disk radius of each surfel, metres.
+    #[must_use]
+    pub fn radii(&self) -> &[f32] {
+        &self.radii
+    }
+
+    /// Accumulated confidence of each surfel (sum of the radial weights of
+    /// the merged measurements); [`super::ABSORBED`] (negative) for a surfel
+    /// absorbed into another and awaiting removal.
+    #[must_use]
+    pub fn confidences(&self) -> &[f32] {
+        &self.confidences
+    }
+
+    /// Frame index (0-based, frames pushed since the last reset) at which
+    /// each surfel was created.
+    #[must_use]
+    pub fn first_seen(&self) -> &[u32] {
+        &self.first_seen
+    }
+
     /// The values of surfel `i`.
     #[must_use]
     pub fn surfel(&self, i: usize) -> Surfel {
@@ -183,9 +227,10 @@ impl SurfelMap {
         self.positions.len()
     }
 
-    /// Length every array has at least: [`SurfelMap::len`] for a sound map.
-    /// Readers that index all arrays by one index stop here, so a map whose
-    /// public arrays were edited to different lengths cannot make them panic.
+    /// Length every array has at least: [`SurfelMap::len`], since the arrays
+    /// change only through this type's methods. Readers that index all
+    /// arrays by one index stop here anyway, so that a bug in one of those
+    /// methods shows as missing surfels rather than a panic.
     #[must_use]
     pub fn common_len(&self) -> usize {
         [
