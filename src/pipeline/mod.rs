@@ -298,6 +298,8 @@ impl Pipeline {
                 vertices: self.pyramid.levels.first().map_or(&[], |l| &l.vertices),
                 tiles: self.integrator.depth_tiles(),
             },
+            // The frame being processed: `frame_index` moves on after `predict`.
+            fusion_cfg.active_at(self.frame_index),
             |i| fusion_cfg.predicts(map, i, fused),
         );
         self.tracker
