@@ -58,7 +58,7 @@ impl Rng {
 struct Encoded {
     colour_png: Vec<u8>,
     depth_png: Vec<u8>,
-    /// The colour decoded (RGB8), for `push_pixels_and_depth_png` and `push_raw`.
+    /// The colour decoded (RGB8), for `push_rgba_depth_png` and `push_raw`.
     rgb: Vec<u8>,
     /// The raw depth decoded, for `push_raw`.
     depth_raw: Vec<u16>,
@@ -382,7 +382,7 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
             let r = match rng.below(4) {
                 3 => slam.push_raw(e.width, e.height, &e.rgb, &e.depth_raw, clock),
                 0 => slam.push_png(&e.colour_png, &e.depth_png, clock),
-                1 => slam.push_pixels_and_depth_png(e.width, e.height, &e.rgb, &e.depth_png, clock),
+                1 => slam.push_rgba_depth_png(e.width, e.height, &e.rgb, &e.depth_png, clock),
                 _ => slam.push_frame(&e.frame, clock),
             };
             let r =
@@ -425,7 +425,7 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
                 2 => slam.push_png(&garbage.odd.colour_png, &garbage.odd.depth_png, clock + 1.0),
                 3 => slam.push_png(&e.colour_png, &png_8bit(e.width, e.height), clock + 1.0),
                 4 => slam.push_png(&garbage.odd.colour_png, &e.depth_png, clock + 1.0),
-                5 => slam.push_pixels_and_depth_png(
+                5 => slam.push_rgba_depth_png(
                     e.width,
                     e.height,
                     &e.rgb[..e.rgb.len() - 1],
@@ -656,7 +656,7 @@ fn nan_and_infinite_timestamps_are_refused_by_the_library() {
             "{err}"
         );
         slam.push_frame(&e.frame, t).expect_err("refused");
-        slam.push_pixels_and_depth_png(e.width, e.height, &e.rgb, &e.depth_png, t)
+        slam.push_rgba_depth_png(e.width, e.height, &e.rgb, &e.depth_png, t)
             .expect_err("refused");
     }
     assert_eq!((slam.frames(), slam.map().len()), (0, 0));

@@ -264,8 +264,9 @@ impl RgbdFrame {
 
     /// Builds a frame from colour pixels decoded elsewhere (RGBA8 or RGB8 by
     /// length, `width` x `height`; a browser's `getImageData`, say) and a
-    /// 16-bit single-channel depth PNG, decoded here.
-    pub fn from_pixels_and_depth_png(
+    /// 16-bit single-channel depth PNG, decoded here. The "RGBA + depth PNG"
+    /// path, as `Pipeline::push_rgba_depth_png` and JS `pushRgbaDepthPng`.
+    pub fn from_rgba_depth_png(
         width: usize,
         height: usize,
         colour: &[u8],
@@ -273,7 +274,7 @@ impl RgbdFrame {
         settings: &DepthSettings,
     ) -> Result<Self, FrameError> {
         let mut frame = Self::default();
-        frame.decode_depth_with_pixels_into(
+        frame.decode_rgba_depth_png_into(
             width,
             height,
             colour,
@@ -284,12 +285,12 @@ impl RgbdFrame {
         Ok(frame)
     }
 
-    /// As [`RgbdFrame::from_pixels_and_depth_png`], into this frame, reusing
+    /// As [`RgbdFrame::from_rgba_depth_png`], into this frame, reusing
     /// its buffers and `scratch`'s. The checks and messages are those of
     /// [`RgbdFrame::decode_into`] (colour/depth size mismatch, depth not
     /// 16-bit, ...) plus a colour buffer whose length does not match the size.
     /// On error the frame's contents are unspecified.
-    pub fn decode_depth_with_pixels_into(
+    pub fn decode_rgba_depth_png_into(
         &mut self,
         width: usize,
         height: usize,
@@ -402,7 +403,7 @@ mod tests {
         let depth = depth16(w as u32, h as u32, 7500);
         let both = RgbdFrame::from_png_bytes(&colour_png, &depth, &settings).expect("pngs");
         for pixels in [&rgba, &rgb] {
-            let f = RgbdFrame::from_pixels_and_depth_png(w, h, pixels, &depth, &settings)
+            let f = RgbdFrame::from_rgba_depth_png(w, h, pixels, &depth, &settings)
                 .expect("pixels + depth PNG");
             assert_eq!(f, both);
         }
@@ -412,8 +413,7 @@ mod tests {
     fn colour_pixels_with_depth_png_reject_bad_input() {
         let settings = DepthSettings::default();
         let rgba = vec![0_u8; 4 * 4 * 3];
-        let err =
-            RgbdFrame::from_pixels_and_depth_png(4, 3, &rgba[..10], &depth16(4, 3, 1), &settings);
+        let err = RgbdFrame::from_rgba_depth_png(4, 3, &rgba[..10], &depth16(4, 3, 1), &settings);
         assert!(
             matches!(
                 err,
@@ -425,7 +425,7 @@ mod tests {
             ),
             "{err:?}"
         );
-        let err = RgbdFrame::from_pixels_and_depth_png(4, 3, &rgba, &depth16(5, 3, 1), &settings);
+        let err = RgbdFrame::from_rgba_depth_png(4, 3, &rgba, &depth16(5, 3, 1), &settings);
         let message = err
             .as_ref()
             .map_err(ToString::to_string)
@@ -436,12 +436,12 @@ mod tests {
             3,
             Luma([7]),
         )));
-        let err = RgbdFrame::from_pixels_and_depth_png(4, 3, &rgba, &d8, &settings);
+        let err = RgbdFrame::from_rgba_depth_png(4, 3, &rgba, &d8, &settings);
         assert!(
             matches!(err, Err(FrameError::DepthNot16Bit { .. })),
             "{err:?}"
         );
-        let err = RgbdFrame::from_pixels_and_depth_png(4, 3, &rgba, b"not a png", &settings);
+        let err = RgbdFrame::from_rgba_depth_png(4, 3, &rgba, b"not a png", &settings);
         assert!(
             matches!(
                 err,
@@ -452,18 +452,13 @@ mod tests {
             ),
             "{err:?}"
         );
-        let err = RgbdFrame::from_pixels_and_depth_png(0, 3, &[], &depth16(4, 3, 1), &settings);
+        let err = RgbdFrame::from_rgba_depth_png(0, 3, &[], &depth16(4, 3, 1), &settings);
         assert!(
             matches!(err, Err(FrameError::BadDimensions { .. })),
             "{err:?}"
         );
-        let huge = RgbdFrame::from_pixels_and_depth_png(
-            usize::MAX,
-            2,
-            &rgba,
-            &depth16(4, 3, 1),
-            &settings,
-        );
+        let huge =
+            RgbdFrame::from_rgba_depth_png(usize::MAX, 2, &rgba, &depth16(4, 3, 1), &settings);
         assert!(
             matches!(huge, Err(FrameError::BadDimensions { .. })),
             "{huge:?}"

@@ -22,7 +22,7 @@ impl Pipeline {
     /// RGB8 pixels, `width` x `height`: a browser decodes colour PNGs and
     /// JPEGs faster than wasm) with a 16-bit depth PNG decoded here (a
     /// browser would reduce it to 8 bits). `decode_ms` counts the depth.
-    pub fn push_pixels_and_depth_png(
+    pub fn push_rgba_depth_png(
         &mut self,
         width: usize,
         height: usize,
@@ -31,7 +31,7 @@ impl Pipeline {
         timestamp: f64,
     ) -> Result<FrameReport, PipelineError> {
         self.decode_and_push(timestamp, |frame, settings, scratch| {
-            frame.decode_depth_with_pixels_into(width, height, colour, depth, settings, scratch)
+            frame.decode_rgba_depth_png_into(width, height, colour, depth, settings, scratch)
         })
     }
 

@@ -118,7 +118,7 @@ impl Pipeline {
     }
 
     /// The frame of the last push when it was decoded here (`push_png`,
-    /// `push_pixels_and_depth_png`) and accepted; `None` after a failed push,
+    /// `push_rgba_depth_png`) and accepted; `None` after a failed push,
     /// a push of an already decoded frame, or a reset. Input resolution.
     #[must_use]
     pub fn last_decoded_frame(&self) -> Option<&RgbdFrame> {

@@ -12,6 +12,7 @@ use crate::camera::CameraPreset;
 use crate::dataset::DatasetKind;
 use crate::eval::AteResult;
 use crate::pipeline::{FrameReport, Verdict};
+use crate::se3::unit_quaternion;
 
 #[wasm_bindgen(typescript_custom_section)]
 const TS_TYPES: &'static str = r#"
@@ -142,12 +143,6 @@ pub fn preset_to_js(preset: CameraPreset) -> JsValue {
     .into()
 }
 
-/// Unit quaternion `[x, y, z, w]` (w >= 0) of a pose's rotation.
-#[must_use]
-pub fn quaternion(pose: &DAffine3) -> [f64; 4] {
-    crate::se3::unit_quaternion(pose)
-}
-
 fn numbers(values: &[f64]) -> Array {
     values.iter().map(|&v| JsValue::from_f64(v)).collect()
 }
@@ -178,7 +173,7 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
         ("lostReason", lost_reason),
         ("pose", matrix.into()),
         ("translation", numbers(&[t.x, t.y, t.z]).into()),
-        ("quaternion", numbers(&quaternion(pose)).into()),
+        ("quaternion", numbers(&unit_quaternion(pose)).into()),
         ("inliers", (r.inliers as f64).into()),
         ("inlierRatio", r.inlier_ratio.into()),
         ("residual", r.residual_rms_m.into()),
@@ -232,6 +227,6 @@ pub fn ate_to_js(r: &AteResult) -> JsValue {
 #[must_use]
 pub fn tum_row(t: f64, pose: &DAffine3) -> JsValue {
     let p = pose.translation;
-    let [qx, qy, qz, qw] = quaternion(pose);
+    let [qx, qy, qz, qw] = unit_quaternion(pose);
     numbers(&[t, p.x, p.y, p.z, qx, qy, qz, qw]).into()
 }

@@ -110,7 +110,7 @@ impl Slam {
         #[wasm_bindgen(js_name = "depthPng")] depth_png: &[u8],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
-        let report = self.pipeline.push_pixels_and_depth_png(
+        let report = self.pipeline.push_rgba_depth_png(
             width as usize,
             height as usize,
             rgba,
