@@ -12,3 +12,4 @@
 //! Poses are `world_from_camera` (metres); times are frame indices.
 
 pub mod ferns;
+pub mod relocalise;
