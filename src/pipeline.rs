@@ -12,6 +12,7 @@ use crate::fusion::{
     remove_unstable, FusionConfig, FusionStats, Integrator, Measured, Prediction, SpatialOrder,
     SurfelMap,
 };
+use crate::loop_closure::relocalise::{Model, RelocaliseConfig, Relocaliser, Trackers};
 use crate::preprocess::{half_resolution_into, FramePyramid, PreprocessConfig};
 use crate::se3;
 use crate::track::verify::{free_space_violation, TrackingChecks};
@@ -35,6 +36,8 @@ pub struct SlamConfig {
     pub tracker: TrackerConfig,
     /// Fusion and prediction.
     pub fusion: FusionConfig,
+    /// Keyframe database and relocalisation of a lost camera.
+    pub relocalise: RelocaliseConfig,
 }
 
 impl SlamConfig {
@@ -48,6 +51,7 @@ impl SlamConfig {
             preprocess: PreprocessConfig::default(),
             tracker: TrackerConfig::default(),
             fusion: FusionConfig::default(),
+            relocalise: RelocaliseConfig::default(),
         }
     }
 
@@ -280,6 +284,8 @@ pub struct Pipeline {
     sparse: SparseEstimator,
     /// `previous_from_current` of the last two fused frames in a row.
     velocity: Option<DAffine3>,
+    /// Keyframes of the fused frames, to place a lost camera.
+    relocaliser: Relocaliser,
 }
 
 impl Pipeline {
@@ -300,6 +306,8 @@ impl Pipeline {
             sparse: SparseEstimator::new(config.tracker.verify.features)
                 .map_err(|e| PipelineError::InvalidConfig(e.to_string()))?,
             velocity: None,
+            relocaliser: Relocaliser::new(config.relocalise)
+                .map_err(|e| PipelineError::InvalidConfig(e.to_string()))?,
             config,
             map: SurfelMap::default(),
             prediction: Prediction::new(photometric),
@@ -372,6 +380,7 @@ impl Pipeline {
         self.trajectory.clear();
         self.last_good = None;
         self.sparse.clear();
+        self.relocaliser.clear();
         self.velocity = None;
         self.frame_index = 0;
         self.counts = VerdictCounts::default();
@@ -651,6 +660,29 @@ impl Pipeline {
         lost(first, checks)
     }
 
+    /// Places a lost frame by the keyframes that look like it (see
+    /// [`crate::loop_closure::relocalise`]): against the whole model, not
+    /// only the view from the last good pose.
+    fn relocalise(&mut self) -> Option<crate::loop_closure::relocalise::Relocalisation> {
+        let map = &self.map;
+        let fusion = self.config.fusion;
+        let fused = self.counts.tracked + self.counts.recovered;
+        self.relocaliser.relocalise(
+            &self.pyramid,
+            Model {
+                map,
+                include: |i| fusion.predicts(map, i, fused),
+                far_m: self.config.depth.max_m,
+            },
+            Trackers {
+                normal: &self.config.tracker,
+                wide: &self.recovery,
+                min_conditioning: RECOVERY_MIN_CONDITIONING,
+            },
+            &mut self.tracker,
+        )
+    }
+
     /// Processes one decoded frame stamped `timestamp` (seconds or frame
     /// number; must be finite). On error nothing changes.
     ///
@@ -691,7 +723,9 @@ impl Pipeline {
         let _ = self
             .sparse
             .prepare(&self.pyramid.rgb, level0, k.width, k.height);
-        let (verdict, pose, stats, checks) = match self.last_good {
+        // A frame it cannot use cannot be looked up or kept as a keyframe.
+        let _ = self.relocaliser.encode(&self.pyramid);
+        let (mut verdict, mut pose, mut stats, mut checks) = match self.last_good {
             None => (
                 Verdict::Initialised,
                 DAffine3::IDENTITY,
@@ -700,6 +734,15 @@ impl Pipeline {
             ),
             Some(previous) => self.track_or_recover(&previous),
         };
+        if matches!(verdict, Verdict::Lost(_)) {
+            if let Some(found) = self.relocalise() {
+                verdict = Verdict::Recovered;
+                pose = found.world_from_camera;
+                stats = Some(found.result);
+                checks.free_space_final = found.free_space;
+                checks.relocalised_from = Some(found.keyframe_frame);
+            }
+        }
         let t2 = now_ms();
 
         let mut fusion = FusionStats::default();
@@ -758,6 +801,7 @@ impl Pipeline {
                 _ => None,
             };
             self.sparse.current_becomes_reference();
+            self.relocaliser.remember(&pose, index);
             self.last_good = Some(pose);
         }
         let t4 = now_ms();

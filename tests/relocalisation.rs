@@ -139,6 +139,7 @@ impl Mapped {
             Trackers {
                 normal: &self.config.tracker,
                 wide: &wide(&self.config.tracker),
+                min_conditioning: 2e-3,
             },
             &mut self.workspace,
         )?;
@@ -245,4 +246,78 @@ fn a_repeated_object_is_not_mistaken_for_the_one_mapped() {
             );
         }
     }
+}
+
+/// A frame of noise: random colour and random depth in 0.5..4.5 m.
+fn garbage(k: &Intrinsics, seed: u64) -> surfel_slam::RgbdFrame {
+    let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let n = k.pixel_count();
+    surfel_slam::RgbdFrame {
+        width: k.width,
+        height: k.height,
+        rgb: (0..3 * n).map(|_| (next() >> 56) as u8).collect(),
+        depth_m: (0..n)
+            .map(|_| 0.5 + 4.0 * (next() >> 40) as f32 / (1u64 << 24) as f32)
+            .collect(),
+    }
+}
+
+#[test]
+fn a_lost_camera_that_jumps_to_a_mapped_place_is_relocalised() {
+    let k = small();
+    let config = synthetic_config(k);
+    let scene = Scene::room();
+    let mut slam = Pipeline::new(config.clone()).expect("config");
+    let world_from_scene = synthetic::trajectory_pose(0).inverse();
+    // Mapping along the path, five frames of noise (the camera covered or
+    // shaken), then the camera is 1.1 m and 57 degrees away, back where it
+    // was at frame 20, and moves on 5 cm / 4 degrees beside its old path.
+    let mut views: Vec<Option<DAffine3>> = (0..110)
+        .map(|i| Some(synthetic::trajectory_pose(i)))
+        .collect();
+    views.extend([None; 5]);
+    views.extend((20..50).map(|i| Some(off_path(synthetic::trajectory_pose(i)))));
+    let mut relocalised = None;
+    for (i, view) in views.iter().enumerate() {
+        let frame = match view {
+            Some(pose) => synthetic::render(&scene, &k, pose, &noise(), i as u64)
+                .to_frame(&config.depth)
+                .expect("frame"),
+            None => garbage(&k, i as u64),
+        };
+        let report = slam.push_frame(&frame, i as f64).expect("push");
+        if !report.verdict.is_fused() {
+            continue;
+        }
+        let Some(pose) = view else {
+            panic!("frame {i} of noise fused ({})", report.verdict.name());
+        };
+        let truth = world_from_scene * *pose;
+        let (dt, dr) = motion_magnitude(&(truth.inverse() * report.world_from_camera));
+        // Never a wrong pose reported as tracked.
+        assert!(
+            dt < 0.05 && dr.to_degrees() < 3.0,
+            "frame {i} {}: {dt:.3} m {:.2} deg from the truth",
+            report.verdict.name(),
+            dr.to_degrees()
+        );
+        if i >= 115 && relocalised.is_none() {
+            relocalised = Some((i, dt, dr.to_degrees(), report.checks.relocalised_from));
+        }
+    }
+    let (i, dt, dr, keyframe) = relocalised.expect("relocalised after the jump");
+    assert!(
+        dt < 0.02 && dr < 1.0,
+        "frame {i} relocalised {dt:.4} m {dr:.2} deg from the truth"
+    );
+    assert!(keyframe.is_some(), "frame {i} placed without a keyframe");
+    assert!(i <= 117, "relocalised only at frame {i}");
+    let counts = slam.counts();
+    assert!(counts.lost <= 8, "{} frames lost", counts.lost);
 }

@@ -27,6 +27,9 @@ use glam::{DAffine3, Vec3};
 /// Settings of relocalisation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RelocaliseConfig {
+    /// Relocalise lost frames (keyframes are kept either way, for global
+    /// loop closure).
+    pub enabled: bool,
     /// The keyframe database.
     pub ferns: FernConfig,
     /// Keyframes more dissimilar than this (0..1) are not tried. Measured
@@ -40,11 +43,6 @@ pub struct RelocaliseConfig {
     /// The model is rendered down to this far behind the depth the keyframe
     /// measured, metres (its map may have been refined since).
     pub render_band_m: f32,
-    /// The normal tracker's final system must be at least this well
-    /// conditioned: without a prior pose, ICP on a view of one or two planes
-    /// slides to a wrong pose with a tiny residual (the pipeline's
-    /// re-acquisition bound, measured there).
-    pub min_conditioning: f64,
     /// The relocalised pose may lie at most this far from the keyframe it
     /// was started at, metres: a look-alike keyframe is near the camera.
     pub max_from_keyframe_m: f64,
@@ -66,11 +64,11 @@ pub struct RelocaliseConfig {
 impl Default for RelocaliseConfig {
     fn default() -> Self {
         Self {
+            enabled: true,
             ferns: FernConfig::default(),
             max_dissimilarity: 0.45,
             candidates: 3,
             render_band_m: 0.1,
-            min_conditioning: 2e-3,
             max_from_keyframe_m: 0.5,
             max_from_keyframe_deg: 45.0,
             max_photometric_error: 10.0,
@@ -106,6 +104,11 @@ pub struct Trackers<'a> {
     pub normal: &'a TrackerConfig,
     /// The re-acquisition search settings.
     pub wide: &'a TrackerConfig,
+    /// The normal tracker's final system must be at least this well
+    /// conditioned: without a prior pose, ICP on a view of one or two
+    /// planes slides to a wrong pose with a tiny residual (the pipeline's
+    /// re-acquisition bound).
+    pub min_conditioning: f64,
 }
 
 /// The model a frame is relocalised against.
@@ -209,7 +212,7 @@ impl Relocaliser {
         workspace: &mut TrackerWorkspace,
     ) -> Option<Relocalisation> {
         let k = pyramid.levels.first()?.intrinsics?;
-        if !self.encoded {
+        if !self.encoded || !self.config.enabled {
             return None;
         }
         let mut matches = std::mem::take(&mut self.matches);
@@ -248,7 +251,7 @@ impl Relocaliser {
                 && dr.to_degrees() <= self.config.max_from_keyframe_deg;
             if result.lost.is_some()
                 || !pose.is_finite()
-                || result.conditioning < self.config.min_conditioning
+                || result.conditioning < trackers.min_conditioning
                 || !near_keyframe
             {
                 return None;
