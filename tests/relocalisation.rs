@@ -133,7 +133,8 @@ impl Mapped {
             &self.pyramid,
             Model {
                 map,
-                include: |i: usize| map.confidences[i] >= stable,
+                seen: 0..u32::MAX,
+                include: |i: usize| map.confidences()[i] >= stable,
                 far_m: self.config.depth.max_m,
             },
             Trackers {

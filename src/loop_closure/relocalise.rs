@@ -112,11 +112,14 @@ pub struct Trackers<'a> {
 }
 
 /// The model a frame is relocalised against.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Model<'a, F> {
     /// The surfel map (world frame).
     pub map: &'a SurfelMap,
-    /// Which surfels may be rendered (the pipeline's stable ones).
+    /// Surfels last seen in these frames are rendered (all of them to
+    /// relocalise; the inactive ones for a global loop closure).
+    pub seen: std::ops::Range<u32>,
+    /// Which of those may be rendered (the pipeline's stable ones).
     pub include: F,
     /// Farthest depth rendered, metres.
     pub far_m: f32,
@@ -204,7 +207,7 @@ impl Relocaliser {
     /// Tries to place the encoded frame (`pyramid`) in `model` from the
     /// keyframes that look like it; `None` when no keyframe's registration
     /// passes every check (see the module documentation).
-    pub fn relocalise<F: Fn(usize) -> bool + Sync + Copy>(
+    pub fn relocalise<F: Fn(usize) -> bool + Sync>(
         &mut self,
         pyramid: &FramePyramid,
         model: Model<'_, F>,
@@ -233,7 +236,7 @@ impl Relocaliser {
             let keyframe = self.database.keyframes().get(m.keyframe)?;
             let start = keyframe.world_from_camera;
             let frame_index = keyframe.frame_index;
-            self.render_keyframe_view(m.keyframe, &k, model);
+            self.render_keyframe_view(m.keyframe, &k, &model);
             let searched = track(pyramid, &self.prediction, &start, &wide, workspace);
             if !searched.world_from_camera.is_finite() {
                 return None;
@@ -288,11 +291,11 @@ impl Relocaliser {
     /// Renders `model` from keyframe `id`'s pose, each pixel down to the
     /// farthest depth the keyframe measured in its block (plus the band):
     /// the model as the keyframe saw it.
-    fn render_keyframe_view<F: Fn(usize) -> bool + Sync + Copy>(
+    fn render_keyframe_view<F: Fn(usize) -> bool + Sync>(
         &mut self,
         id: usize,
         k: &Intrinsics,
-        model: Model<'_, F>,
+        model: &Model<'_, F>,
     ) {
         let Some(keyframe) = self.database.keyframes().get(id) else {
             return;
@@ -315,7 +318,8 @@ impl Relocaliser {
                 vertices: &self.measured,
                 tiles: &self.tiles,
             },
-            model.include,
+            model.seen.clone(),
+            &model.include,
         );
     }
 }

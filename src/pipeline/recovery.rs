@@ -276,6 +276,7 @@ impl Pipeline {
             &self.pyramid,
             Model {
                 map,
+                seen: 0..u32::MAX,
                 include: |i| fusion.predicts(map, i, fused),
                 far_m: self.config.depth.max_m,
             },
