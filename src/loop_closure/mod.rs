@@ -12,4 +12,5 @@
 //! Poses are `world_from_camera` (metres); times are frame indices.
 
 pub mod ferns;
+pub mod global;
 pub mod relocalise;

@@ -205,8 +205,9 @@ impl Relocaliser {
     }
 
     /// Tries to place the encoded frame (`pyramid`) in `model` from the
-    /// keyframes that look like it; `None` when no keyframe's registration
-    /// passes every check (see the module documentation).
+    /// keyframes that look like it; `None` when relocalisation is off or no
+    /// keyframe's registration passes every check (see the module
+    /// documentation).
     pub fn relocalise<F: Fn(usize) -> bool + Sync>(
         &mut self,
         pyramid: &FramePyramid,
@@ -214,14 +215,31 @@ impl Relocaliser {
         trackers: Trackers<'_>,
         workspace: &mut TrackerWorkspace,
     ) -> Option<Relocalisation> {
+        if !self.config.enabled {
+            return None;
+        }
+        self.place(pyramid, model, trackers, workspace, u32::MAX)
+    }
+
+    /// As [`Self::relocalise`] (whether or not relocalisation is on), from
+    /// keyframes of frames before `before` only: a global loop closure
+    /// looks for places seen long ago.
+    pub fn place<F: Fn(usize) -> bool + Sync>(
+        &mut self,
+        pyramid: &FramePyramid,
+        model: Model<'_, F>,
+        trackers: Trackers<'_>,
+        workspace: &mut TrackerWorkspace,
+        before: u32,
+    ) -> Option<Relocalisation> {
         let k = pyramid.levels.first()?.intrinsics?;
-        if !self.encoded || !self.config.enabled {
+        if !self.encoded {
             return None;
         }
         let mut matches = std::mem::take(&mut self.matches);
         self.database.query_into(
             self.config.max_dissimilarity,
-            u32::MAX,
+            before,
             self.config.candidates,
             &mut matches,
         );
