@@ -12,3 +12,6 @@
 //! Poses are `world_from_camera` (metres); times are frame indices.
 
 pub mod deformation;
+pub mod ferns;
+pub mod global;
+pub mod relocalise;
