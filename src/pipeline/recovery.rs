@@ -4,8 +4,8 @@
 use super::{Pipeline, Verdict};
 use crate::features::SparseEstimate;
 use crate::fusion::Prediction;
-use crate::preprocess::FramePyramid;
 use crate::loop_closure::relocalise::{Model, Trackers};
+use crate::preprocess::FramePyramid;
 use crate::se3;
 use crate::track::verify::{free_space_violation, TrackingChecks, VerifyConfig};
 use crate::track::{track, LostReason, TrackResult, TrackerConfig, TrackerWorkspace};
