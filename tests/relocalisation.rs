@@ -6,6 +6,8 @@ mod common;
 
 use common::synthetic_config;
 use glam::{DAffine3, DVec3};
+use surfel_slam::dataset::{read_frame, Sequence};
+use surfel_slam::eval::ate;
 use surfel_slam::loop_closure::ferns::{FernConfig, FernDatabase};
 use surfel_slam::loop_closure::global::{
     constraints_into, find_global_match, GlobalConfig, GlobalMatch,
@@ -450,4 +452,78 @@ fn a_look_alike_object_closes_no_loop() {
             );
         }
     }
+}
+
+#[test]
+fn teddy_frames_are_relocalised_near_the_truth_or_not_at_all() {
+    let Some(dir) = common::shared_dataset("tum_fr3_teddy") else {
+        return;
+    };
+    let sequence = Sequence::open(&dir).expect("sequence");
+    let config = SlamConfig::from_preset(sequence.preset);
+    let mut slam = Pipeline::new(config.clone()).expect("config");
+    let mut relocaliser = Relocaliser::new(RelocaliseConfig::default()).expect("config");
+    let mut pyramid = FramePyramid::new(&config.intrinsics, &config.preprocess);
+    let frames: Vec<_> = sequence
+        .frames
+        .iter()
+        .map(|e| read_frame(&dir, e, &config.depth).expect("frame"))
+        .collect();
+    // Keyframes from the first 120 frames; the map from all of them.
+    for (i, (entry, frame)) in sequence.frames.iter().zip(&frames).enumerate() {
+        let report = slam.push_frame(frame, entry.timestamp).expect("push");
+        pyramid.build(frame, &config.preprocess);
+        relocaliser.encode(&pyramid).expect("encode");
+        if report.verdict.is_fused() && i < 120 {
+            relocaliser.remember(&report.world_from_camera, i as u32);
+        }
+    }
+    let align = ate(slam.trajectory(), &sequence.ground_truth, 0.02)
+        .expect("ate")
+        .ground_truth_from_estimate;
+    let mut workspace = TrackerWorkspace::default();
+    let (mut placed, mut mapped_places) = (0, 0);
+    for (i, (entry, frame)) in sequence.frames.iter().zip(&frames).enumerate().step_by(6) {
+        pyramid.build(frame, &config.preprocess);
+        relocaliser.encode(&pyramid).expect("encode");
+        let map = slam.map();
+        let stable = config.fusion.stable_confidence;
+        let found = relocaliser.relocalise(
+            &pyramid,
+            Model {
+                map,
+                seen: 0..u32::MAX,
+                include: |j: usize| map.confidences()[j] >= stable,
+                far_m: config.depth.max_m,
+            },
+            Trackers {
+                normal: &config.tracker,
+                wide: &wide(&config.tracker),
+                min_conditioning: 2e-3,
+            },
+            &mut workspace,
+        );
+        mapped_places += usize::from(i < 120);
+        let Some(found) = found else {
+            continue;
+        };
+        placed += usize::from(i < 120);
+        let Some(truth) = sequence.ground_truth_for(entry.timestamp, 0.02) else {
+            continue;
+        };
+        let error = (align.transform_point3(found.world_from_camera.translation)
+            - truth.translation)
+            .length();
+        // The tracked poses themselves are within about 1.5 cm.
+        assert!(
+            error < 0.03,
+            "frame {i} relocalised {error:.3} m from the truth by keyframe {} (photometric {:.1})",
+            found.keyframe_frame,
+            found.photometric_error
+        );
+    }
+    assert!(
+        2 * placed >= mapped_places,
+        "only {placed} of {mapped_places} frames of mapped places relocalised"
+    );
 }

@@ -6,11 +6,13 @@
 //! re-acquisition tracker (wide gates) is started at the keyframe's pose,
 //! the normal tracker is started at its result, and the pose counts only if
 //! the normal tracker accepts it, the view pins all six degrees of freedom,
-//! the frame's points keep out of the model's free space, and the pose lies
-//! near the keyframe whose look-alike it is. A place that only looks alike
-//! (another wall of the same colour, a repeated object) then fails on the
-//! geometry around it; a view too plain to pin the pose fails on the
-//! conditioning.
+//! the frame's points keep out of the model's free space and the model's
+//! surfaces out of the space the frame sees through, the pose lies near the
+//! keyframe whose look-alike it is, and the frame's colours agree with the
+//! keyframe's where the pose puts them. A place that only looks alike
+//! (another wall of the same colour) fails on the geometry around it; a
+//! repeated object whose surroundings repeat too fails on the colours; a
+//! view too plain to pin the pose fails on the conditioning.
 //!
 //! Poses are `world_from_camera` (metres); times are frame indices.
 
