@@ -198,6 +198,32 @@ fn poses_move_with_the_surfaces_seen_at_their_time() {
 }
 
 #[test]
+fn a_rigid_motion_of_everything_is_reproduced() {
+    let s = strip();
+    let t = correction();
+    let mut graph =
+        DeformationGraph::from_samples(&s.positions, &s.times, DeformConfig::default()).unwrap();
+    let constraints: Vec<Constraint> = s
+        .positions
+        .iter()
+        .zip(&s.times)
+        .step_by(5)
+        .map(|(&p, &time)| Constraint::new(p, moved(&t, p), time))
+        .collect();
+    graph.optimise(&constraints).unwrap();
+    let (mut positions, mut normals) = (s.positions.clone(), s.normals.clone());
+    graph
+        .apply_to_points(&mut positions, &mut normals, &s.times)
+        .unwrap();
+    let rotation = t.matrix3.as_mat3();
+    for i in 0..positions.len() {
+        let error = (positions[i] - moved(&t, s.positions[i])).length();
+        assert!(error < 1e-4, "point {i}: {error} m");
+        assert!(normals[i].dot(rotation * s.normals[i]) > (0.05f32).to_radians().cos());
+    }
+}
+
+#[test]
 fn targets_equal_to_sources_change_nothing() {
     let s = strip();
     let mut graph =
@@ -421,4 +447,69 @@ fn random_input_never_panics() {
         graph.apply_to_points(&mut ps, &mut ns, &times).unwrap();
         let _ = graph.apply_to_pose(&DAffine3::IDENTITY, times.first().copied().unwrap_or(0));
     }
+}
+
+/// Cost on a map of a million surfels (a measurement for
+/// docs/performance.md, not a check: `cargo test --release --test
+/// deformation -- --ignored --nocapture`).
+#[test]
+#[ignore = "measurement; run by hand"]
+fn measure_a_million_points() {
+    use std::time::Instant;
+    // A room-sized cylinder wall (radius 2 m, 2.5 m high) swept by the
+    // camera over 1000 frames; each frame adds the surfels of the next slice.
+    let (n, frames) = (1_000_000usize, 1000u32);
+    let mut rng = Rng(7);
+    let mut positions = Vec::with_capacity(n);
+    let mut normals = Vec::with_capacity(n);
+    let mut times = Vec::with_capacity(n);
+    for i in 0..n {
+        let time = (i as u64 * u64::from(frames) / n as u64) as u32;
+        let angle = std::f32::consts::TAU * (time as f32 + (rng.next() % 1000) as f32 / 1000.0)
+            / frames as f32;
+        let h = (rng.next() % 2500) as f32 / 1000.0;
+        let radial = Vec3::new(angle.cos(), 0.0, angle.sin());
+        positions.push(2.0 * radial + Vec3::Y * h);
+        normals.push(-radial);
+        times.push(time);
+    }
+    // Close the loop: the last 50 frames' surfaces moved 5 cm, the first
+    // 100 pinned; 1000 constraints and 1000 pins.
+    let correction = DAffine3::from_translation(DVec3::new(0.03, 0.0, 0.04));
+    let late: Vec<usize> = (0..n).filter(|&i| times[i] >= frames - 50).collect();
+    let early: Vec<usize> = (0..n).filter(|&i| times[i] < 100).collect();
+    let mut constraints: Vec<Constraint> = late
+        .iter()
+        .step_by(late.len() / 1000)
+        .map(|&i| Constraint::new(positions[i], moved(&correction, positions[i]), times[i]))
+        .collect();
+    constraints.extend(
+        early
+            .iter()
+            .step_by(early.len() / 1000)
+            .map(|&i| Constraint::pin(positions[i], times[i])),
+    );
+    let start = Instant::now();
+    let mut graph =
+        DeformationGraph::from_samples(&positions, &times, DeformConfig::default()).unwrap();
+    let build = start.elapsed();
+    let start = Instant::now();
+    let report = graph.optimise(&constraints).unwrap();
+    let optimise = start.elapsed();
+    let start = Instant::now();
+    graph
+        .apply_to_points(&mut positions, &mut normals, &times)
+        .unwrap();
+    let apply = start.elapsed();
+    eprintln!(
+        "{n} points, {} nodes, {} constraints: build {:.1} ms, optimise {:.1} ms ({} iterations, max error {:.2} mm), apply {:.1} ms on {} threads",
+        graph.len(),
+        constraints.len(),
+        build.as_secs_f64() * 1e3,
+        optimise.as_secs_f64() * 1e3,
+        report.iterations,
+        report.max_constraint_error_m * 1e3,
+        apply.as_secs_f64() * 1e3,
+        rayon::current_num_threads()
+    );
 }
