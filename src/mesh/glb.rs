@@ -119,9 +119,6 @@ fn accessor(
 }
 
 fn write_glb(prim: &Primitive) -> Vec<u8> {
-    use json::accessor::{ComponentType, Type};
-    use json::buffer::Target;
-
     let count = prim.positions.len();
     let triangles = prim.triangles.unwrap_or(&[]);
     let mut root = json::Root {
@@ -140,139 +137,159 @@ fn write_glb(prim: &Primitive) -> Vec<u8> {
     // is a file without buffers or meshes.
     let drawable = count > 0 && (prim.triangles.is_none() || !triangles.is_empty());
     if drawable {
-        let (lo, hi) = prim.positions.iter().fold(
-            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-            |(lo, hi), &p| (lo.min(p), hi.max(p)),
-        );
-        let mut push_view = |bytes: &mut Vec<u8>, target| {
-            let start = bin.len();
-            bin.append(bytes);
-            (start, bin.len() - start, target)
-        };
-        let mut position_bytes: Vec<u8> = prim
-            .positions
-            .iter()
-            .flat_map(|p| p.to_array())
-            .flat_map(f32::to_le_bytes)
-            .collect();
-        let mut normal_bytes: Vec<u8> = prim
-            .normals
-            .iter()
-            .flat_map(|p| p.to_array())
-            .flat_map(f32::to_le_bytes)
-            .collect();
-        let mut colour_bytes: Vec<u8> = prim.colours.iter().flatten().copied().collect();
-        let mut index_bytes: Vec<u8> = triangles
-            .iter()
-            .flatten()
-            .flat_map(|i| i.to_le_bytes())
-            .collect();
-        let views = [
-            push_view(&mut position_bytes, Target::ArrayBuffer),
-            push_view(&mut normal_bytes, Target::ArrayBuffer),
-            push_view(&mut colour_bytes, Target::ArrayBuffer),
-            push_view(&mut index_bytes, Target::ElementArrayBuffer),
-        ];
-        root.push(json::Buffer {
-            byte_length: USize64::from(bin.len()),
-            uri: None,
-            extensions: None,
-            extras: Default::default(),
-        });
-        let [pv, nv, cv, iv] = views;
-        let pv = view(&mut root, pv.0, pv.1, pv.2);
-        let nv = view(&mut root, nv.0, nv.1, nv.2);
-        let cv = view(&mut root, cv.0, cv.1, cv.2);
-        let position = accessor(
-            &mut root,
-            pv,
-            count,
-            ComponentType::F32,
-            Type::Vec3,
-            false,
-            Some((lo, hi)),
-        );
-        let normal = accessor(
-            &mut root,
-            nv,
-            count,
-            ComponentType::F32,
-            Type::Vec3,
-            false,
-            None,
-        );
-        let colour = accessor(
-            &mut root,
-            cv,
-            count,
-            ComponentType::U8,
-            Type::Vec4,
-            true,
-            None,
-        );
-        let indices = if prim.triangles.is_some() {
-            let iv = view(&mut root, iv.0, iv.1, iv.2);
-            Some(accessor(
-                &mut root,
-                iv,
-                triangles.len() * 3,
-                ComponentType::U32,
-                Type::Scalar,
-                false,
-                None,
-            ))
-        } else {
-            None
-        };
-        let material = root.push(json::Material {
-            double_sided: true,
-            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
-                metallic_factor: json::material::StrengthFactor(0.0),
-                roughness_factor: json::material::StrengthFactor(1.0),
-                ..Default::default()
-            },
-            ..Default::default()
-        });
-        let mut attributes = BTreeMap::new();
-        attributes.insert(Checked::Valid(json::mesh::Semantic::Positions), position);
-        attributes.insert(Checked::Valid(json::mesh::Semantic::Normals), normal);
-        attributes.insert(Checked::Valid(json::mesh::Semantic::Colors(0)), colour);
-        let mode = if prim.triangles.is_some() {
-            json::mesh::Mode::Triangles
-        } else {
-            json::mesh::Mode::Points
-        };
-        let mesh = root.push(json::Mesh {
-            extensions: None,
-            extras: Default::default(),
-            primitives: vec![json::mesh::Primitive {
-                attributes,
-                extensions: None,
-                extras: Default::default(),
-                indices,
-                material: Some(material),
-                mode: Checked::Valid(mode),
-                targets: None,
-            }],
-            weights: None,
-        });
-        let node = root.push(json::Node {
-            mesh: Some(mesh),
-            // Half a turn about x: world +y down becomes glTF +y up.
-            rotation: Some(json::scene::UnitQuaternion([1.0, 0.0, 0.0, 0.0])),
-            ..Default::default()
-        });
-        let scene = root.push(json::Scene {
-            extensions: None,
-            extras: Default::default(),
-            nodes: vec![node],
-        });
-        root.scene = Some(scene);
+        let accessors = push_buffers(&mut root, prim, &mut bin);
+        push_scene(&mut root, prim, accessors);
     }
     // Serialising these plain structs cannot fail; an empty object would
     // still frame into a file the validator reports.
     let mut text = root.to_vec().unwrap_or_else(|_| b"{}".to_vec());
     glb_frame(&mut text, bin)
+}
+
+/// The accessors of one primitive's attributes (and indices, for a mesh).
+struct Accessors {
+    position: json::Index<json::Accessor>,
+    normal: json::Index<json::Accessor>,
+    colour: json::Index<json::Accessor>,
+    indices: Option<json::Index<json::Accessor>>,
+}
+
+/// Appends the primitive's attributes (and triangle indices) to `bin` and
+/// describes them in `root`: one buffer, its views, their accessors.
+fn push_buffers(root: &mut json::Root, prim: &Primitive, bin: &mut Vec<u8>) -> Accessors {
+    use json::accessor::{ComponentType, Type};
+    use json::buffer::Target;
+
+    let count = prim.positions.len();
+    let triangles = prim.triangles.unwrap_or(&[]);
+    let (lo, hi) = prim.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let mut push_view = |bytes: &mut Vec<u8>, target| {
+        let start = bin.len();
+        bin.append(bytes);
+        (start, bin.len() - start, target)
+    };
+    let mut position_bytes: Vec<u8> = prim
+        .positions
+        .iter()
+        .flat_map(|p| p.to_array())
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    let mut normal_bytes: Vec<u8> = prim
+        .normals
+        .iter()
+        .flat_map(|p| p.to_array())
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    let mut colour_bytes: Vec<u8> = prim.colours.iter().flatten().copied().collect();
+    let mut index_bytes: Vec<u8> = triangles
+        .iter()
+        .flatten()
+        .flat_map(|i| i.to_le_bytes())
+        .collect();
+    let views = [
+        push_view(&mut position_bytes, Target::ArrayBuffer),
+        push_view(&mut normal_bytes, Target::ArrayBuffer),
+        push_view(&mut colour_bytes, Target::ArrayBuffer),
+        push_view(&mut index_bytes, Target::ElementArrayBuffer),
+    ];
+    root.push(json::Buffer {
+        byte_length: USize64::from(bin.len()),
+        uri: None,
+        extensions: None,
+        extras: Default::default(),
+    });
+    let [pv, nv, cv, iv] = views;
+    let pv = view(root, pv.0, pv.1, pv.2);
+    let nv = view(root, nv.0, nv.1, nv.2);
+    let cv = view(root, cv.0, cv.1, cv.2);
+    let position = accessor(
+        root,
+        pv,
+        count,
+        ComponentType::F32,
+        Type::Vec3,
+        false,
+        Some((lo, hi)),
+    );
+    let normal = accessor(root, nv, count, ComponentType::F32, Type::Vec3, false, None);
+    let colour = accessor(root, cv, count, ComponentType::U8, Type::Vec4, true, None);
+    let indices = if prim.triangles.is_some() {
+        let iv = view(root, iv.0, iv.1, iv.2);
+        Some(accessor(
+            root,
+            iv,
+            triangles.len() * 3,
+            ComponentType::U32,
+            Type::Scalar,
+            false,
+            None,
+        ))
+    } else {
+        None
+    };
+    Accessors {
+        position,
+        normal,
+        colour,
+        indices,
+    }
+}
+
+/// The material, mesh, node and scene of the primitive in `root`.
+fn push_scene(root: &mut json::Root, prim: &Primitive, accessors: Accessors) {
+    let Accessors {
+        position,
+        normal,
+        colour,
+        indices,
+    } = accessors;
+    let material = root.push(json::Material {
+        double_sided: true,
+        pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+            metallic_factor: json::material::StrengthFactor(0.0),
+            roughness_factor: json::material::StrengthFactor(1.0),
+            ..Default::default()
+        },
+        ..Default::default()
+    });
+    let mut attributes = BTreeMap::new();
+    attributes.insert(Checked::Valid(json::mesh::Semantic::Positions), position);
+    attributes.insert(Checked::Valid(json::mesh::Semantic::Normals), normal);
+    attributes.insert(Checked::Valid(json::mesh::Semantic::Colors(0)), colour);
+    let mode = if prim.triangles.is_some() {
+        json::mesh::Mode::Triangles
+    } else {
+        json::mesh::Mode::Points
+    };
+    let mesh = root.push(json::Mesh {
+        extensions: None,
+        extras: Default::default(),
+        primitives: vec![json::mesh::Primitive {
+            attributes,
+            extensions: None,
+            extras: Default::default(),
+            indices,
+            material: Some(material),
+            mode: Checked::Valid(mode),
+            targets: None,
+        }],
+        weights: None,
+    });
+    let node = root.push(json::Node {
+        mesh: Some(mesh),
+        // Half a turn about x: world +y down becomes glTF +y up.
+        rotation: Some(json::scene::UnitQuaternion([1.0, 0.0, 0.0, 0.0])),
+        ..Default::default()
+    });
+    let scene = root.push(json::Scene {
+        extensions: None,
+        extras: Default::default(),
+        nodes: vec![node],
+    });
+    root.scene = Some(scene);
 }
 
 /// Frames the JSON and the binary buffer as a GLB file.

@@ -101,28 +101,10 @@ impl Scalar {
     }
 }
 
-/// Reads the surfels of a binary PLY file (see the module docs).
-///
-/// # Errors
-/// A malformed or truncated file, another format, or no positions or
-/// normals.
-pub fn read_surfel_ply(bytes: &[u8]) -> Result<SurfelMap, SurfelPlyError> {
+/// The vertex count and the vertex properties (name, type) of a PLY header
+/// (`text`: up to `end_header`).
+fn parse_header(text: &str) -> Result<(u64, Vec<(String, Scalar)>), SurfelPlyError> {
     let header_err = |m: &str| SurfelPlyError::Header(m.to_owned());
-    let search = &bytes[..bytes.len().min(MAX_HEADER)];
-    let marker = b"end_header";
-    let end = search
-        .windows(marker.len())
-        .position(|w| w == marker)
-        .ok_or_else(|| header_err("no end_header line in the first 64 KiB"))?;
-    let mut body = end + marker.len();
-    if bytes.get(body) == Some(&b'\r') {
-        body += 1;
-    }
-    if bytes.get(body) != Some(&b'\n') {
-        return Err(header_err("end_header is not followed by a newline"));
-    }
-    body += 1;
-    let text = std::str::from_utf8(&bytes[..end]).map_err(|_| header_err("header is not text"))?;
     let mut lines = text.lines().map(str::trim);
     if lines.next() != Some("ply") {
         return Err(header_err("does not start with \"ply\""));
@@ -169,6 +151,32 @@ pub fn read_surfel_ply(bytes: &[u8]) -> Result<SurfelMap, SurfelPlyError> {
         return Err(header_err("no format line"));
     }
     let count = count.ok_or_else(|| header_err("no vertex element"))?;
+    Ok((count, props))
+}
+
+/// Reads the surfels of a binary PLY file (see the module docs).
+///
+/// # Errors
+/// A malformed or truncated file, another format, or no positions or
+/// normals.
+pub fn read_surfel_ply(bytes: &[u8]) -> Result<SurfelMap, SurfelPlyError> {
+    let header_err = |m: &str| SurfelPlyError::Header(m.to_owned());
+    let search = &bytes[..bytes.len().min(MAX_HEADER)];
+    let marker = b"end_header";
+    let end = search
+        .windows(marker.len())
+        .position(|w| w == marker)
+        .ok_or_else(|| header_err("no end_header line in the first 64 KiB"))?;
+    let mut body = end + marker.len();
+    if bytes.get(body) == Some(&b'\r') {
+        body += 1;
+    }
+    if bytes.get(body) != Some(&b'\n') {
+        return Err(header_err("end_header is not followed by a newline"));
+    }
+    body += 1;
+    let text = std::str::from_utf8(&bytes[..end]).map_err(|_| header_err("header is not text"))?;
+    let (count, props) = parse_header(text)?;
     let mut offsets = Vec::with_capacity(props.len());
     let mut stride = 0usize;
     for (_, ty) in &props {
