@@ -218,7 +218,7 @@ mod tests {
             b.saw(i, frame(i));
         }
         let select = |b: &ChunkBounds, seen: Range<u32>| {
-            let mut out = Vec::new();
+            let mut out: Vec<Range<usize>> = Vec::new();
             b.select(n, &seen, |_, _| true, &mut out);
             out
         };

@@ -10,3 +10,6 @@
 //!   every past pose to satisfy the constraints an accepted closure gives.
 //!
 //! Poses are `world_from_camera` (metres); times are frame indices.
+
+pub mod ferns;
+pub mod relocalise;

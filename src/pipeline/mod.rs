@@ -24,6 +24,7 @@ use crate::frame::{DecodeScratch, RgbdFrame};
 use crate::fusion::{
     remove_unstable, FusionStats, Integrator, Measured, Prediction, SpatialOrder, SurfelMap,
 };
+use crate::loop_closure::relocalise::Relocaliser;
 use crate::preprocess::{half_resolution_into, FramePyramid};
 use crate::track::verify::TrackingChecks;
 use crate::track::{TrackerConfig, TrackerMode, TrackerWorkspace};
@@ -58,6 +59,8 @@ pub struct Pipeline {
     sparse: SparseEstimator,
     /// `previous_from_current` of the last two fused frames in a row.
     velocity: Option<DAffine3>,
+    /// Keyframes of the fused frames, to place a lost camera.
+    relocaliser: Relocaliser,
 }
 
 impl Pipeline {
@@ -78,6 +81,8 @@ impl Pipeline {
             sparse: SparseEstimator::new(config.tracker.verify.features)
                 .map_err(|e| PipelineError::InvalidConfig(e.to_string()))?,
             velocity: None,
+            relocaliser: Relocaliser::new(config.relocalise)
+                .map_err(|e| PipelineError::InvalidConfig(e.to_string()))?,
             config,
             map: SurfelMap::default(),
             prediction: Prediction::new(photometric),
@@ -150,6 +155,7 @@ impl Pipeline {
         self.trajectory.clear();
         self.last_good = None;
         self.sparse.clear();
+        self.relocaliser.clear();
         self.velocity = None;
         self.frame_index = 0;
         self.counts = VerdictCounts::default();
@@ -163,8 +169,9 @@ impl Pipeline {
     /// A frame judged lost is not fused and its pose is held at the last good
     /// one. While lost (and whenever the normal tracker fails) a wider
     /// re-acquisition search runs from the last good pose against the model
-    /// seen from there; a re-acquired frame is reported as
-    /// [`Verdict::Recovered`] and fused. When the map is at
+    /// seen from there, and if that fails, relocalisation from the keyframes
+    /// that look like the frame (`loop_closure::relocalise`); a re-acquired
+    /// frame is reported as [`Verdict::Recovered`] and fused. When the map is at
     /// `FusionConfig::max_surfels`, stale unstable surfels are evicted first,
     /// then new surfels are skipped (`FusionStats::skipped`).
     pub fn push_frame(
@@ -235,7 +242,9 @@ impl Pipeline {
         let _ = self
             .sparse
             .keep_frame(&self.pyramid.rgb, level0, k.width, k.height);
-        match self.last_good {
+        // A frame the fern code cannot use is neither looked up nor kept.
+        let _ = self.relocaliser.encode(&self.pyramid);
+        let tracked = match self.last_good {
             None => Tracked {
                 verdict: Verdict::Initialised,
                 pose: DAffine3::IDENTITY,
@@ -243,7 +252,8 @@ impl Pipeline {
                 checks: TrackingChecks::default(),
             },
             Some(previous) => self.track_or_recover(&previous),
-        }
+        };
+        self.relocalise_if_lost(tracked)
     }
 
     /// Stage `fuse`: integrates the frame at `pose` into the map, with the
@@ -311,6 +321,7 @@ impl Pipeline {
             _ => None,
         };
         self.sparse.current_becomes_reference();
+        self.relocaliser.remember(pose, self.frame_index);
         self.last_good = Some(*pose);
     }
 

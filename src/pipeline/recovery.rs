@@ -2,6 +2,7 @@
 //! of [`Pipeline::push_frame`].
 
 use super::{Pipeline, Verdict};
+use crate::loop_closure::relocalise::{Model, Trackers};
 use crate::se3;
 use crate::track::verify::{free_space_violation, TrackingChecks};
 use crate::track::{track, LostReason, TrackResult, TrackerConfig};
@@ -254,5 +255,49 @@ impl Pipeline {
             }
         }
         lost(first, checks)
+    }
+}
+
+impl Pipeline {
+    /// A lost frame placed by the keyframes that look like it (see
+    /// [`crate::loop_closure::relocalise`]), against the whole model seen
+    /// from each keyframe rather than only the view from the last good
+    /// pose; reported as [`Verdict::Recovered`] with
+    /// `checks.relocalised_from` set. Other frames pass unchanged.
+    pub(super) fn relocalise_if_lost(&mut self, tracked: Tracked) -> Tracked {
+        if !matches!(tracked.verdict, Verdict::Lost(_)) {
+            return tracked;
+        }
+        let map = &self.map;
+        let fusion = self.config.fusion;
+        // As the prediction's: the warm-up counts fused frames.
+        let fused = self.counts.tracked + self.counts.recovered;
+        let found = self.relocaliser.relocalise(
+            &self.pyramid,
+            Model {
+                map,
+                seen: 0..u32::MAX,
+                include: |i| fusion.predicts(map, i, fused),
+                far_m: self.config.depth.max_m,
+            },
+            Trackers {
+                normal: &self.config.tracker,
+                wide: &self.recovery,
+                min_conditioning: RECOVERY_MIN_CONDITIONING,
+            },
+            &mut self.tracker,
+        );
+        let Some(found) = found else {
+            return tracked;
+        };
+        let mut checks = tracked.checks;
+        checks.free_space_final = found.free_space;
+        checks.relocalised_from = Some(found.keyframe_frame);
+        Tracked::new(
+            Verdict::Recovered,
+            found.world_from_camera,
+            Some(found.result),
+            checks,
+        )
     }
 }

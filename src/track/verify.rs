@@ -203,4 +203,7 @@ pub struct TrackingChecks {
     pub sparse_only: bool,
     /// The dense tracker's first result, `world_from_camera`.
     pub first_dense: Option<DAffine3>,
+    /// When the frame was lost and then placed by relocalisation: the
+    /// frame index of the keyframe it was placed by.
+    pub relocalised_from: Option<u32>,
 }

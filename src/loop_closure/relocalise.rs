@@ -1,0 +1,435 @@
+//! Relocalisation of a lost camera from the keyframe database.
+//!
+//! The frame is looked up among the keyframes ([`FernDatabase`]); for each
+//! similar keyframe, most similar first, the model is rendered as that
+//! keyframe saw it (from its pose, down to the depth it measured), the
+//! re-acquisition tracker (wide gates) is started at the keyframe's pose,
+//! the normal tracker is started at its result, and the pose counts only if
+//! the normal tracker accepts it, the view pins all six degrees of freedom,
+//! the frame's points keep out of the model's free space, and the pose lies
+//! near the keyframe whose look-alike it is. A place that only looks alike
+//! (another wall of the same colour, a repeated object) then fails on the
+//! geometry around it; a view too plain to pin the pose fails on the
+//! conditioning.
+//!
+//! Poses are `world_from_camera` (metres); times are frame indices.
+
+use super::ferns::{FernConfig, FernDatabase, FernError, FernFrame, FernMatch, Keyframe};
+use crate::camera::Intrinsics;
+use crate::fusion::{DepthTiles, Measured, Prediction, SurfelMap};
+use crate::preprocess::FramePyramid;
+use crate::preprocess::PyramidLevel;
+use crate::se3;
+use crate::track::verify::{free_space_violation, VerifyConfig};
+use crate::track::{track, TrackResult, TrackerConfig, TrackerMode, TrackerWorkspace};
+use glam::{DAffine3, Vec3};
+
+/// Settings of relocalisation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RelocaliseConfig {
+    /// Relocalise lost frames (keyframes are kept either way, for global
+    /// loop closure).
+    pub enabled: bool,
+    /// The keyframe database.
+    pub ferns: FernConfig,
+    /// Keyframes more dissimilar than this (0..1) are not tried. Measured
+    /// on the synthetic room (500 ferns, 80x60): a revisit 5 cm and 3
+    /// degrees off the path matches its keyframe at 0.27-0.34; views from
+    /// places the path never went match at best 0.37-0.45.
+    pub max_dissimilarity: f32,
+    /// Most keyframes tried per lost frame (each costs a model render and
+    /// two tracker runs).
+    pub candidates: usize,
+    /// The model is rendered down to this far behind the depth the keyframe
+    /// measured, metres (its map may have been refined since).
+    pub render_band_m: f32,
+    /// The relocalised pose may lie at most this far from the keyframe it
+    /// was started at, metres: a look-alike keyframe is near the camera.
+    pub max_from_keyframe_m: f64,
+    /// ... and this rotation, degrees.
+    pub max_from_keyframe_deg: f64,
+    /// Mean absolute grey-level difference (0..255) between the frame's
+    /// small image and the keyframe's, each block compared with the block
+    /// it lands on at the relocalised pose (where the two depths agree).
+    /// Geometry cannot tell a repeated object from the one mapped; its
+    /// texture around it usually can. Measured on the synthetic room with a
+    /// row of identical boxes 1 m apart: right poses 5.3, poses shifted by
+    /// one to three boxes (which every geometric check passed) 15-21.
+    pub max_photometric_error: f32,
+    /// Fewer blocks than this fraction of the small image compared: the
+    /// frame hardly overlaps the keyframe it was placed by; refused.
+    pub min_photometric_overlap: f32,
+}
+
+impl Default for RelocaliseConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            ferns: FernConfig::default(),
+            max_dissimilarity: 0.45,
+            candidates: 3,
+            render_band_m: 0.1,
+            max_from_keyframe_m: 0.5,
+            max_from_keyframe_deg: 45.0,
+            max_photometric_error: 10.0,
+            min_photometric_overlap: 0.2,
+        }
+    }
+}
+
+/// A relocalised pose and how it was found.
+#[derive(Debug, Clone, Copy)]
+pub struct Relocalisation {
+    /// The camera pose found (camera to world, metres).
+    pub world_from_camera: DAffine3,
+    /// Frame index of the keyframe the tracker was started at.
+    pub keyframe_frame: u32,
+    /// Fern dissimilarity of that keyframe to the frame (0..1).
+    pub dissimilarity: f32,
+    /// The normal tracker's result at the pose.
+    pub result: TrackResult,
+    /// Free-space violation fraction at the pose (see
+    /// [`free_space_violation`]).
+    pub free_space: f64,
+    /// Mean grey-level difference to the keyframe's small image (see
+    /// `RelocaliseConfig::max_photometric_error`).
+    pub photometric_error: f32,
+}
+
+/// The trackers relocalisation runs: the normal one (whose verdict counts)
+/// and the re-acquisition one with wide gates (which finds the start).
+#[derive(Debug, Clone, Copy)]
+pub struct Trackers<'a> {
+    /// The pipeline's tracker settings.
+    pub normal: &'a TrackerConfig,
+    /// The re-acquisition search settings.
+    pub wide: &'a TrackerConfig,
+    /// The normal tracker's final system must be at least this well
+    /// conditioned: without a prior pose, ICP on a view of one or two
+    /// planes slides to a wrong pose with a tiny residual (the pipeline's
+    /// re-acquisition bound).
+    pub min_conditioning: f64,
+}
+
+/// The model a frame is relocalised against.
+#[derive(Debug, Clone)]
+pub struct Model<'a, F> {
+    /// The surfel map (world frame).
+    pub map: &'a SurfelMap,
+    /// Surfels last seen in these frames are rendered (all of them to
+    /// relocalise; the inactive ones for a global loop closure).
+    pub seen: std::ops::Range<u32>,
+    /// Which of those may be rendered (the pipeline's stable ones).
+    pub include: F,
+    /// Farthest depth rendered, metres.
+    pub far_m: f32,
+}
+
+/// Keyframe database and the buffers relocalisation renders into.
+#[derive(Debug)]
+pub struct Relocaliser {
+    config: RelocaliseConfig,
+    database: FernDatabase,
+    prediction: Prediction,
+    measured: Vec<Vec3>,
+    /// Never built: no tile culling (the keyframe's depth is coarse).
+    tiles: DepthTiles,
+    matches: Vec<FernMatch>,
+    /// Whether the last [`Self::encode`] succeeded.
+    encoded: bool,
+}
+
+impl Relocaliser {
+    /// An empty relocaliser with `config`.
+    pub fn new(config: RelocaliseConfig) -> Result<Self, FernError> {
+        if !(config.render_band_m >= 0.0 && config.render_band_m.is_finite()) {
+            return Err(FernError::InvalidConfig("render band must be >= 0"));
+        }
+        Ok(Self {
+            database: FernDatabase::new(config.ferns)?,
+            config,
+            prediction: Prediction::new(false),
+            measured: Vec::new(),
+            tiles: DepthTiles::default(),
+            matches: Vec::new(),
+            encoded: false,
+        })
+    }
+
+    /// The configuration in use.
+    #[must_use]
+    pub fn config(&self) -> &RelocaliseConfig {
+        &self.config
+    }
+
+    /// The keyframe database.
+    #[must_use]
+    pub fn database(&self) -> &FernDatabase {
+        &self.database
+    }
+
+    /// The keyframe database, to move keyframe poses after a loop closure.
+    pub fn database_mut(&mut self) -> &mut FernDatabase {
+        &mut self.database
+    }
+
+    /// Forgets every keyframe.
+    pub fn clear(&mut self) {
+        self.database.clear();
+        self.prediction.clear();
+        self.encoded = false;
+    }
+
+    /// Encodes the frame of `pyramid` (working colour and finest depth) for
+    /// [`Self::remember`] and [`Self::relocalise`]; call once per frame.
+    pub fn encode(&mut self, pyramid: &FramePyramid) -> Result<(), FernError> {
+        self.encoded = false;
+        let (depth, width, height) = pyramid
+            .levels
+            .first()
+            .and_then(|l| Some((&l.depth, l.intrinsics?)))
+            .map_or((&[][..], 0, 0), |(d, k)| (&d[..], k.width, k.height));
+        self.database.encode(&pyramid.rgb, depth, width, height)?;
+        self.encoded = true;
+        Ok(())
+    }
+
+    /// After the encoded frame was fused at `world_from_camera` (frame
+    /// `frame_index`): keeps it as a keyframe when no keyframe looks like
+    /// it. Returns the keyframe's index when added.
+    pub fn remember(&mut self, world_from_camera: &DAffine3, frame_index: u32) -> Option<usize> {
+        if !self.encoded {
+            return None;
+        }
+        self.database.add_if_novel(world_from_camera, frame_index)
+    }
+
+    /// Tries to place the encoded frame (`pyramid`) in `model` from the
+    /// keyframes that look like it; `None` when no keyframe's registration
+    /// passes every check (see the module documentation).
+    pub fn relocalise<F: Fn(usize) -> bool + Sync>(
+        &mut self,
+        pyramid: &FramePyramid,
+        model: Model<'_, F>,
+        trackers: Trackers<'_>,
+        workspace: &mut TrackerWorkspace,
+    ) -> Option<Relocalisation> {
+        let k = pyramid.levels.first()?.intrinsics?;
+        if !self.encoded || !self.config.enabled {
+            return None;
+        }
+        let mut matches = std::mem::take(&mut self.matches);
+        self.database.query_into(
+            self.config.max_dissimilarity,
+            u32::MAX,
+            self.config.candidates,
+            &mut matches,
+        );
+        // The photometric term compares with the previous fused frame, which
+        // is not where the camera is now: geometry alone.
+        let icp_only = |c: &TrackerConfig| TrackerConfig {
+            mode: TrackerMode::Icp,
+            ..c.clone()
+        };
+        let (normal, wide) = (icp_only(trackers.normal), icp_only(trackers.wide));
+        let found = matches.iter().find_map(|m| {
+            let keyframe = self.database.keyframes().get(m.keyframe)?;
+            let start = keyframe.world_from_camera;
+            let frame_index = keyframe.frame_index;
+            self.render_keyframe_view(m.keyframe, &k, &model);
+            let searched = track(pyramid, &self.prediction, &start, &wide, workspace);
+            if !searched.world_from_camera.is_finite() {
+                return None;
+            }
+            let result = track(
+                pyramid,
+                &self.prediction,
+                &searched.world_from_camera,
+                &normal,
+                workspace,
+            );
+            let pose = result.world_from_camera;
+            let (dt, dr) = se3::motion_magnitude(&(start.inverse() * pose));
+            let near_keyframe = dt <= self.config.max_from_keyframe_m
+                && dr.to_degrees() <= self.config.max_from_keyframe_deg;
+            if result.lost.is_some()
+                || !pose.is_finite()
+                || result.conditioning < trackers.min_conditioning
+                || !near_keyframe
+            {
+                return None;
+            }
+            let coarsest = pyramid.levels.last()?;
+            let verify = &normal.verify;
+            let (free_space, landed) =
+                free_space_violation(&self.prediction, &coarsest.vertices, 1, &pose, verify);
+            let see_through = see_through_fraction(&self.prediction, coarsest, &pose, verify);
+            let limit = verify.max_free_space_fraction;
+            if landed == 0 || free_space > limit || see_through > limit {
+                return None;
+            }
+            let photometric = photometric_error(
+                self.database.current(),
+                self.database.keyframes().get(m.keyframe)?,
+                &k,
+                &pose,
+                self.config.min_photometric_overlap,
+            )?;
+            (photometric <= self.config.max_photometric_error).then_some(Relocalisation {
+                world_from_camera: pose,
+                keyframe_frame: frame_index,
+                dissimilarity: m.dissimilarity,
+                result,
+                free_space,
+                photometric_error: photometric,
+            })
+        });
+        self.matches = matches;
+        found
+    }
+
+    /// Renders `model` from keyframe `id`'s pose, each pixel down to the
+    /// farthest depth the keyframe measured in its block (plus the band):
+    /// the model as the keyframe saw it.
+    fn render_keyframe_view<F: Fn(usize) -> bool + Sync>(
+        &mut self,
+        id: usize,
+        k: &Intrinsics,
+        model: &Model<'_, F>,
+    ) {
+        let Some(keyframe) = self.database.keyframes().get(id) else {
+            return;
+        };
+        let small = &keyframe.frame;
+        let (w, h) = (small.width.max(1), small.height.max(1));
+        let (width, height) = (k.width.max(1), k.height.max(1));
+        self.measured.clear();
+        self.measured.extend((0..k.pixel_count()).map(|i| {
+            let (x, y) = (i % width, i / width);
+            let cell = (y * h / height).min(h - 1) * w + (x * w / width).min(w - 1);
+            Vec3::new(0.0, 0.0, small.far_m.get(cell).copied().unwrap_or(0.0))
+        }));
+        self.prediction.render(
+            model.map,
+            &keyframe.world_from_camera,
+            k,
+            (self.config.render_band_m, model.far_m),
+            Measured {
+                vertices: &self.measured,
+                tiles: &self.tiles,
+            },
+            model.seen.clone(),
+            &model.include,
+        );
+    }
+}
+
+/// Fraction of the model points of `prediction` (world frame, every 4th
+/// pixel each way) that the frame (`level`, camera frame), placed at
+/// `world_from_camera`, sees through: measured farther along the same ray
+/// than the model point by more than the free-space margin. The converse of
+/// [`free_space_violation`]: a look-alike place explains the frame's points
+/// well (they land on or behind model surfaces) but the model then has
+/// surfaces where the camera sees empty space. Among model points that land
+/// on a measured pixel; 0 when none do.
+fn see_through_fraction(
+    prediction: &Prediction,
+    level: &PyramidLevel,
+    world_from_camera: &DAffine3,
+    config: &VerifyConfig,
+) -> f64 {
+    let Some(k) = level.intrinsics else {
+        return 0.0;
+    };
+    if level.vertices.len() != k.pixel_count() {
+        return 0.0;
+    }
+    let camera_from_world = world_from_camera.inverse().as_affine3a();
+    let (mut seen_through, mut landed) = (0usize, 0usize);
+    let width = prediction.intrinsics.map_or(1, |p| p.width.max(1));
+    for (i, model) in prediction.vertices.iter().enumerate().step_by(4) {
+        if (i / width) % 4 != 0 || *model == Vec3::ZERO {
+            continue;
+        }
+        let q = camera_from_world.transform_point3(*model);
+        if q.z <= 0.0 {
+            continue;
+        }
+        let Some(pixel) = k.pixel_index(k.project(q)) else {
+            continue;
+        };
+        let z = level.vertices[pixel].z;
+        if z <= 0.0 {
+            continue;
+        }
+        landed += 1;
+        let margin = config.free_space_margin_m + config.free_space_margin_rel * q.z;
+        if z > q.z + margin {
+            seen_through += 1;
+        }
+    }
+    seen_through as f64 / landed.max(1) as f64
+}
+
+/// Intrinsics of a small image whose blocks are `block` pixels of the
+/// image seen through `k` (block centres at the centres of the pixels
+/// they average).
+fn small_intrinsics(k: &Intrinsics, frame: &FernFrame) -> Intrinsics {
+    let (bx, by) = (frame.block.0.max(1) as f32, frame.block.1.max(1) as f32);
+    Intrinsics::new(
+        k.fx / bx,
+        k.fy / by,
+        (k.cx - 0.5 * (bx - 1.0)) / bx,
+        (k.cy - 0.5 * (by - 1.0)) / by,
+        frame.width,
+        frame.height,
+    )
+}
+
+fn grey(c: [u8; 3]) -> f32 {
+    0.299 * f32::from(c[0]) + 0.587 * f32::from(c[1]) + 0.114 * f32::from(c[2])
+}
+
+/// Mean absolute grey difference between the blocks of `current` (taken at
+/// `world_from_camera` through `k` at full size) and the blocks of
+/// `keyframe` they land on, where the keyframe measured about the same
+/// depth there (5 % + 5 cm: else one of the two sees something else).
+/// `None` when fewer than `min_overlap` of the blocks were compared.
+fn photometric_error(
+    current: &FernFrame,
+    keyframe: &Keyframe,
+    k: &Intrinsics,
+    world_from_camera: &DAffine3,
+    min_overlap: f32,
+) -> Option<f32> {
+    let small = small_intrinsics(k, current);
+    let theirs = &keyframe.frame;
+    let their_k = small_intrinsics(k, theirs);
+    let keyframe_from_current =
+        (keyframe.world_from_camera.inverse() * *world_from_camera).as_affine3a();
+    let (mut sum, mut count) = (0.0f32, 0usize);
+    for (i, (&z, &c)) in current.depth_m.iter().zip(&current.rgb).enumerate() {
+        if z <= 0.0 {
+            continue;
+        }
+        let (u, v) = ((i % current.width) as f32, (i / current.width) as f32);
+        let q = keyframe_from_current.transform_point3(small.back_project(u, v, z));
+        if q.z <= 0.0 {
+            continue;
+        }
+        let Some(j) = their_k.pixel_index(their_k.project(q)) else {
+            continue;
+        };
+        let their_z = theirs.depth_m.get(j).copied().unwrap_or(0.0);
+        if their_z <= 0.0 || (their_z - q.z).abs() > 0.05 + 0.05 * q.z {
+            continue;
+        }
+        let Some(&their_c) = theirs.rgb.get(j) else {
+            continue;
+        };
+        sum += (grey(c) - grey(their_c)).abs();
+        count += 1;
+    }
+    let needed = min_overlap * current.depth_m.len() as f32;
+    (count > 0 && count as f32 >= needed).then(|| sum / count as f32)
+}
