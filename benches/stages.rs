@@ -4,6 +4,9 @@
 //!
 //! `cargo bench --bench stages` (add `-- <name>` to run one group).
 
+// `criterion_group!` generates an undocumented public function.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use glam::{DAffine3, Vec3};
 use std::path::PathBuf;

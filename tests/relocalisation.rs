@@ -7,6 +7,9 @@ mod common;
 use common::synthetic_config;
 use glam::{DAffine3, DVec3};
 use surfel_slam::loop_closure::ferns::{FernConfig, FernDatabase};
+use surfel_slam::loop_closure::global::{
+    constraints_into, find_global_match, GlobalConfig, GlobalMatch,
+};
 use surfel_slam::loop_closure::relocalise::{
     Model, Relocalisation, RelocaliseConfig, Relocaliser, Trackers,
 };
@@ -321,4 +324,130 @@ fn a_lost_camera_that_jumps_to_a_mapped_place_is_relocalised() {
     assert!(i <= 117, "relocalised only at frame {i}");
     let counts = slam.counts();
     assert!(counts.lost <= 8, "{} frames lost", counts.lost);
+}
+
+/// A `Mapped` place looked up as a global loop closure from `tracked`.
+fn global_match(
+    mapped: &mut Mapped,
+    view: &DAffine3,
+    tracked: &DAffine3,
+    seed: u64,
+) -> Option<GlobalMatch> {
+    mapped.show(view, seed);
+    let map = mapped.slam.map();
+    let stable = mapped.config.fusion.stable_confidence;
+    let config = GlobalConfig {
+        min_age_frames: 50,
+        every_frames: 1,
+        ..GlobalConfig::default()
+    };
+    find_global_match(
+        &mut mapped.relocaliser,
+        &mapped.pyramid,
+        Model {
+            map,
+            seen: 0..u32::MAX,
+            include: |i: usize| map.confidences()[i] >= stable,
+            far_m: mapped.config.depth.max_m,
+        },
+        Trackers {
+            normal: &mapped.config.tracker,
+            wide: &wide(&mapped.config.tracker),
+            min_conditioning: 2e-3,
+        },
+        &mut mapped.workspace,
+        (tracked, 125),
+        &config,
+    )
+}
+
+#[test]
+fn a_drifted_return_to_an_old_place_gives_the_correction_and_a_foreign_one_none() {
+    let path: Vec<DAffine3> = (0..125).map(synthetic::trajectory_pose).collect();
+    let mut mapped = Mapped::along(Scene::room(), &path);
+    // Back at frame 20's place, with 8 cm and 1 degree of drift in the
+    // tracked pose.
+    let view = off_path(path[20]);
+    let truth = mapped.world_from_scene * view;
+    let drift = exp(&[0.0, 0.02, 0.0, 0.06, -0.03, 0.04]);
+    let tracked = truth * drift;
+    let found = global_match(&mut mapped, &view, &tracked, 7000).expect("a closure");
+    let registered = found.registration.world_from_camera;
+    let (dt, dr) = motion_magnitude(&(truth.inverse() * registered));
+    assert!(
+        dt < 0.02 && dr.to_degrees() < 1.0,
+        "{dt:.4} m {:.2} deg",
+        dr.to_degrees()
+    );
+    assert!(found.registration.keyframe_frame < 75);
+    let mut constraints = Vec::new();
+    let level = mapped.pyramid.levels.last().expect("levels");
+    let width = level.intrinsics.expect("intrinsics").width;
+    constraints_into(&found, &level.vertices, width, 4, &mut constraints);
+    assert!(constraints.len() > 100, "{} constraints", constraints.len());
+    for (source, target) in &constraints {
+        // The source is where the drifted pose put the point, the target
+        // where the truth is: the target lies on the true surface.
+        let world = mapped.world_from_scene.inverse();
+        let on_surface = mapped
+            .scene
+            .distance_to_surface(world.transform_point3(target.as_dvec3()));
+        assert!(
+            on_surface < 0.03,
+            "target {on_surface:.3} m off the surface"
+        );
+        assert!((*target - *source).length() < 0.2);
+    }
+    // The same drift at a frame of noise spliced in: nothing.
+    let noise_frame = garbage(&small(), 3);
+    mapped
+        .pyramid
+        .build(&noise_frame, &mapped.config.preprocess);
+    let _ = mapped.relocaliser.encode(&mapped.pyramid);
+    let map = mapped.slam.map();
+    let stable = mapped.config.fusion.stable_confidence;
+    let spliced = find_global_match(
+        &mut mapped.relocaliser,
+        &mapped.pyramid,
+        Model {
+            map,
+            seen: 0..u32::MAX,
+            include: |i: usize| map.confidences()[i] >= stable,
+            far_m: mapped.config.depth.max_m,
+        },
+        Trackers {
+            normal: &mapped.config.tracker,
+            wide: &wide(&mapped.config.tracker),
+            min_conditioning: 2e-3,
+        },
+        &mut mapped.workspace,
+        (&tracked, 125),
+        &GlobalConfig {
+            min_age_frames: 50,
+            every_frames: 1,
+            ..GlobalConfig::default()
+        },
+    );
+    assert!(spliced.is_none(), "a frame of noise closed a loop");
+}
+
+#[test]
+fn a_look_alike_object_closes_no_loop() {
+    let path: Vec<DAffine3> = (0..125)
+        .map(|i| row_pose(-2.2 + 0.015 * f64::from(i), f64::from(i)))
+        .collect();
+    let mut mapped = Mapped::along(repeated_boxes(), &path);
+    for (n, x) in [0.0, 0.8, 1.0, 1.5, 2.0].into_iter().enumerate() {
+        let view = row_pose(x, 17.0);
+        let truth = mapped.world_from_scene * view;
+        let tracked = truth * exp(&[0.0, 0.01, 0.0, 0.05, 0.0, 0.03]);
+        if let Some(found) = global_match(&mut mapped, &view, &tracked, 7100 + n as u64) {
+            let (dt, dr) =
+                motion_magnitude(&(truth.inverse() * found.registration.world_from_camera));
+            assert!(
+                dt < 0.05 && dr.to_degrees() < 2.0,
+                "a view at x = {x} closed a loop {dt:.3} m off"
+            );
+        }
+    }
 }

@@ -13,6 +13,7 @@
 
 use std::collections::{HashMap, HashSet};
 
+use super::lines::content_lines;
 use super::{check_listed, index_text, trajectory, DatasetError, FrameEntry, Layout, Parsed};
 
 /// Builds the ICL-NUIM frame list and ground truth from the layout's index
@@ -56,18 +57,9 @@ pub fn parse_associations(
     root_prefix: &str,
 ) -> Result<Vec<FrameEntry>, DatasetError> {
     let mut frames = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line = raw.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let malformed = |reason: &str| DatasetError::MalformedLine {
-            file: file_name.to_owned(),
-            line_number: i + 1,
-            line: line.to_owned(),
-            reason: reason.to_owned(),
-        };
-        let tokens: Vec<&str> = line.split_whitespace().collect();
+    for line in content_lines(text, file_name, true) {
+        let malformed = |reason: &str| line.malformed(reason);
+        let tokens: Vec<&str> = line.tokens().collect();
         let [t1, p1, t2, p2] = tokens[..] else {
             return Err(malformed("expected `N depth/N.png N rgb/N.png`"));
         };

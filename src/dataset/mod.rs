@@ -23,6 +23,7 @@
 
 pub mod archive;
 pub mod icl_nuim;
+mod lines;
 mod open;
 pub mod ply;
 pub mod seven_scenes;

@@ -13,6 +13,7 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 
 use glam::{DAffine3, DMat3, DVec3};
 
+use super::lines::{content_lines, Line};
 use super::{base_name, DatasetError, FrameEntry, Parsed};
 
 /// Frame number in a 7-Scenes file name `frame-NNNNNN<suffix>`.
@@ -123,23 +124,15 @@ pub(crate) fn parse(
 /// `file_name` and the line.
 pub fn parse_pose_matrix(text: &str, file_name: &str) -> Result<DAffine3, DatasetError> {
     let mut rows: Vec<[f64; 4]> = Vec::with_capacity(4);
-    let mut last_line = (0, String::new());
-    for (i, raw) in text.lines().enumerate() {
-        let line = raw.trim();
-        if line.is_empty() {
-            continue;
-        }
-        let malformed = |reason: &str| DatasetError::MalformedLine {
-            file: file_name.to_owned(),
-            line_number: i + 1,
-            line: line.to_owned(),
-            reason: reason.to_owned(),
-        };
+    let mut last_line = Line::none(file_name);
+    // No comments in this format: a `#` line is malformed.
+    for line in content_lines(text, file_name, false) {
+        let malformed = |reason: &str| line.malformed(reason);
         if rows.len() == 4 {
             return Err(malformed("a pose matrix has only 4 rows"));
         }
         let values: Vec<f64> = line
-            .split_whitespace()
+            .tokens()
             .map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite()))
             .collect::<Option<Vec<f64>>>()
             .ok_or_else(|| malformed("expected finite numbers"))?;
@@ -147,14 +140,9 @@ pub fn parse_pose_matrix(text: &str, file_name: &str) -> Result<DAffine3, Datase
             return Err(malformed("expected 4 numbers per row"));
         };
         rows.push([a, b, c, d]);
-        last_line = (i + 1, line.to_owned());
+        last_line = line;
     }
-    let malformed = |reason: &str| DatasetError::MalformedLine {
-        file: file_name.to_owned(),
-        line_number: last_line.0,
-        line: last_line.1.clone(),
-        reason: reason.to_owned(),
-    };
+    let malformed = |reason: &str| last_line.malformed(reason);
     let [r0, r1, r2, r3] = rows[..] else {
         return Err(malformed("expected 4 rows of a 4x4 matrix"));
     };

@@ -5,6 +5,7 @@
 
 use glam::{DAffine3, DQuat, DVec3};
 
+use super::lines::content_lines;
 use super::DatasetError;
 use crate::se3::unit_quaternion;
 
@@ -31,19 +32,10 @@ pub fn format_tum(poses: &[(f64, DAffine3)]) -> String {
 /// `file_name` and the 1-based line number.
 pub fn parse_tum(text: &str, file_name: &str) -> Result<Vec<(f64, DAffine3)>, DatasetError> {
     let mut out = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line = raw.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let malformed = |reason: &str| DatasetError::MalformedLine {
-            file: file_name.to_owned(),
-            line_number: i + 1,
-            line: line.to_owned(),
-            reason: reason.to_owned(),
-        };
+    for line in content_lines(text, file_name, true) {
+        let malformed = |reason: &str| line.malformed(reason);
         let values: Vec<f64> = line
-            .split_whitespace()
+            .tokens()
             .map(|t| t.parse::<f64>().ok())
             .collect::<Option<Vec<f64>>>()
             .ok_or_else(|| malformed("expected numbers `timestamp tx ty tz qx qy qz qw`"))?;

@@ -9,6 +9,7 @@
 
 use std::collections::{HashMap, HashSet};
 
+use super::lines::content_lines;
 use super::{
     base_name, check_listed, index_text, trajectory, DatasetError, FrameEntry, Layout, Parsed,
 };
@@ -21,18 +22,9 @@ pub const MAX_ASSOCIATION_DT_S: f64 = 0.02;
 /// file order; `#` comments and blank lines skipped.
 pub fn parse_file_list(text: &str, file_name: &str) -> Result<Vec<(f64, String)>, DatasetError> {
     let mut out = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line = raw.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let malformed = |reason: &str| DatasetError::MalformedLine {
-            file: file_name.to_owned(),
-            line_number: i + 1,
-            line: line.to_owned(),
-            reason: reason.to_owned(),
-        };
-        let mut tokens = line.split_whitespace();
+    for line in content_lines(text, file_name, true) {
+        let malformed = |reason: &str| line.malformed(reason);
+        let mut tokens = line.tokens();
         let (Some(t), Some(path)) = (tokens.next(), tokens.next()) else {
             return Err(malformed("expected `timestamp path`"));
         };

@@ -1,5 +1,5 @@
 //! Sparse features for wide-baseline pose estimates: Shi-Tomasi corners
-//! with oriented binary descriptors ([`orb`]), lifted to 3D with the
+//! with oriented binary descriptors (`orb.rs`), lifted to 3D with the
 //! frame's depth, matched by Hamming distance (ratio test and mutual
 //! check), and a rigid motion fitted by RANSAC ([`rigid`]).
 //!
@@ -10,7 +10,7 @@
 //! integers) and 3D points are in the frame's camera frame (+x right, +y
 //! down, +z forward), metres.
 
-pub mod orb;
+pub(crate) mod orb;
 pub mod rigid;
 
 use crate::flow::pyramid::GreyLevel;

@@ -6,6 +6,14 @@
 //! (`depth_tiles`), and prediction the blocks that surface hides. Settled
 //! surfels are sorted in space so that blocks are compact (`spatial_order`).
 //!
+//! Time in the map: each surfel keeps the frame it was created and the frame
+//! it was last updated (`SurfelMap::last_seen`). Surfels not updated for
+//! `FusionConfig::active_window_frames` are inactive: association and the
+//! tracker's prediction read only the active ones (and skip whole blocks of
+//! inactive ones), while the map, its drawing and its exports hold all of
+//! them. `Prediction::render` with `FusionConfig::inactive_at` renders the
+//! inactive model, which loop closure registers the active one against.
+//!
 //! All surfel attributes are in the world frame, metres.
 
 pub mod chunk_bounds;

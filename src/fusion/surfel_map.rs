@@ -537,3 +537,52 @@ impl SurfelMap {
             && self.confidences.iter().all(|c| c.is_finite())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const ALL: std::ops::Range<u32> = 0..u32::MAX;
+
+    /// Blocks `select` keeps for the `last_seen` frames `seen`.
+    fn blocks_for(map: &SurfelMap, seen: std::ops::Range<u32>) -> Vec<std::ops::Range<usize>> {
+        let mut out = Vec::new();
+        map.bounds().select(map.len(), &seen, |_, _| true, &mut out);
+        out
+    }
+
+    #[test]
+    fn last_seen_follows_its_surfel_through_touch_reorder_and_removal() {
+        let mut map = SurfelMap::default();
+        for i in 0..1200u32 {
+            map.push(Vec3::splat(i as f32), Vec3::Z, [0; 4], 0.01, 10.0, i / 100);
+        }
+        assert_eq!(map.first_seen(), map.last_seen());
+        // Surfel 5 (block 0) seen again at frame 50.
+        map.touch(5, 50);
+        map.touch(5, 3);
+        assert_eq!(map.last_seen()[5], 50, "touch never moves back");
+        assert_eq!(blocks_for(&map, 40..u32::MAX), vec![0..512]);
+        // Reversing the first 600 surfels carries the times along.
+        let mut scratch = ReorderScratch::default();
+        map.reorder(0, 600, |i| 599 - i, &mut scratch);
+        map.rebuild_bounds_from(0);
+        assert_eq!(map.last_seen()[594], 50);
+        assert_eq!(map.first_seen()[594], 0);
+        assert_eq!(blocks_for(&map, 40..u32::MAX), vec![512..1024]);
+        // Removing every other surfel keeps the pairs together.
+        map.retain_indices(|i| i % 2 == 0);
+        assert_eq!(map.len(), 600);
+        assert_eq!(map.last_seen().len(), 600);
+        assert_eq!(map.last_seen()[297], 50);
+        assert!(map
+            .first_seen()
+            .iter()
+            .zip(map.last_seen())
+            .all(|(f, l)| f <= l));
+        assert_eq!(blocks_for(&map, 40..u32::MAX), vec![0..512]);
+        assert_eq!(blocks_for(&map, ALL), vec![0..600]);
+        map.clear();
+        assert!(map.last_seen().is_empty() && blocks_for(&map, ALL).is_empty());
+    }
+}

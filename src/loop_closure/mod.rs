@@ -11,5 +11,7 @@
 //!
 //! Poses are `world_from_camera` (metres); times are frame indices.
 
+pub mod deformation;
 pub mod ferns;
+pub mod global;
 pub mod relocalise;

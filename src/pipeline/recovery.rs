@@ -2,10 +2,13 @@
 //! of [`Pipeline::push_frame`].
 
 use super::{Pipeline, Verdict};
+use crate::features::SparseEstimate;
+use crate::fusion::Prediction;
 use crate::loop_closure::relocalise::{Model, Trackers};
+use crate::preprocess::FramePyramid;
 use crate::se3;
-use crate::track::verify::{free_space_violation, TrackingChecks};
-use crate::track::{track, LostReason, TrackResult, TrackerConfig};
+use crate::track::verify::{free_space_violation, TrackingChecks, VerifyConfig};
+use crate::track::{track, LostReason, TrackResult, TrackerConfig, TrackerWorkspace};
 use glam::DAffine3;
 
 /// The `track` stage's answer for one frame.
@@ -82,56 +85,37 @@ impl Pipeline {
     /// the last fused one) is asked: the dense result stands if the two
     /// agree; if not, the dense tracker is started again at the sparse
     /// estimate and its result counts only if it passes the same tests and
-    /// agrees with the sparse estimate. Without a sparse estimate, the
-    /// wider re-acquisition search runs from `previous` against the model
-    /// prediction (still the one rendered at `previous`: lost frames do not
-    /// touch it); its result counts only if the normal tracker, started
-    /// there, accepts it, it does not violate free space, and the motion
-    /// since `previous` is plausible for the number of frames lost.
+    /// agrees with the sparse estimate ([`Judge::with_sparse`]). Without a
+    /// sparse estimate, the wider re-acquisition search runs from
+    /// `previous` against the model prediction (still the one rendered at
+    /// `previous`: lost frames do not touch it); its result counts only if
+    /// the normal tracker, started there, accepts it, it does not violate
+    /// free space, and the motion since `previous` is plausible for the
+    /// number of frames lost ([`Judge::reacquire`]).
     pub(super) fn track_or_recover(&mut self, previous: &DAffine3) -> Tracked {
         let normal = &self.config.tracker;
         let verify = normal.verify;
-        let workspace = &mut self.tracker;
         let was_lost = self.counts.lost_streak > 0;
         let guess = match self.velocity {
             Some(velocity) if verify.constant_velocity && !was_lost => *previous * velocity,
             _ => *previous,
         };
+        let judge = Judge {
+            pyramid: &self.pyramid,
+            prediction: &self.prediction,
+            normal,
+            recovery: &self.recovery,
+            verify,
+            previous: *previous,
+            guess,
+            lost_streak: self.counts.lost_streak,
+        };
+        let workspace = &mut self.tracker;
         let mut checks = TrackingChecks::default();
-        let first = track(&self.pyramid, &self.prediction, &guess, normal, workspace);
-        checks.first_dense = Some(first.world_from_camera);
-        // The coarsest level's points (160x120 from 640x480) tell a right
-        // pose (violations <= 1 %) from a wrong one (>= 19 %) at a
-        // sixteenth of the full resolution's cost.
-        let free_space_vertices = self.pyramid.levels.last().map_or(&[][..], |l| &l.vertices);
-        let free_space = |pose: &DAffine3| {
-            free_space_violation(&self.prediction, free_space_vertices, 1, pose, &verify).0
-        };
-        let pinned = |r: &TrackResult| !was_lost || r.conditioning >= RECOVERY_MIN_CONDITIONING;
-        let passes =
-            |r: &TrackResult| r.lost.is_none() && r.world_from_camera.is_finite() && pinned(r);
-        let accepted = if was_lost {
-            Verdict::Recovered
-        } else {
-            Verdict::Tracked
-        };
-        let first_ok = passes(&first);
-        checks.free_space_first = if first_ok {
-            free_space(&first.world_from_camera)
-        } else {
-            0.0
-        };
-        let free_ok = |fraction: f64| fraction <= verify.max_free_space_fraction;
-        let moved = |pose: &DAffine3| {
-            [previous, &guess].iter().any(|from| {
-                let (dt, dr) = se3::motion_magnitude(&(from.inverse() * *pose));
-                dt > verify.sparse_above_m || dr.to_degrees() > verify.sparse_above_deg
-            })
-        };
-        let first_clean = first_ok && free_ok(checks.free_space_first);
-        if first_clean && !moved(&first.world_from_camera) && !verify.sparse_always {
+        let first = judge.first_attempt(workspace, &mut checks);
+        if first.clean && !judge.moved(&first.result.world_from_camera) && !verify.sparse_always {
             checks.free_space_final = checks.free_space_first;
-            return Tracked::new(accepted, first.world_from_camera, Some(first), checks);
+            return first.accept(&judge, checks);
         }
         // The sparse estimate: this frame against the last fused one, whose
         // pose is `previous`.
@@ -141,101 +125,217 @@ impl Pipeline {
         } else {
             None
         };
-        let lost = |result: TrackResult, checks: TrackingChecks| {
-            let reason = result.lost.unwrap_or(LostReason::IllConditioned);
-            Tracked::new(Verdict::Lost(reason), *previous, Some(result), checks)
-        };
         if let Some(estimate) = sparse {
-            let sparse_pose = *previous * estimate.reference_from_current;
-            checks.sparse = Some((sparse_pose, estimate.inliers));
-            checks.sparse_rms_m = estimate.rms_m;
-            if first_clean && verify.agree(&first.world_from_camera, &sparse_pose) {
-                checks.free_space_final = checks.free_space_first;
-                return Tracked::new(accepted, first.world_from_camera, Some(first), checks);
-            }
-            let second = track(
-                &self.pyramid,
-                &self.prediction,
-                &sparse_pose,
-                normal,
-                workspace,
-            );
-            // Started at the sparse estimate, the dense tracker must land
-            // near it, or back on its first result (the sparse estimate is
-            // the less accurate of the two: on TUM fr3/teddy at strides 3-8
-            // it is up to 4.6 cm / 2.9 degrees from a dense result 1.6 cm
-            // from the truth). Not on a view that pins the pose poorly:
-            // there both dense runs slide to the same wrong place (the
-            // synthetic room's wall-and-floor views, 14 cm).
-            let landed = |pose: &DAffine3| {
-                verify.landed_near(pose, &sparse_pose)
-                    || (first_clean
-                        && first.conditioning >= RECOVERY_MIN_CONDITIONING
-                        && verify.same_basin(pose, &first.world_from_camera))
-            };
-            if passes(&second) && landed(&second.world_from_camera) {
-                let fraction = free_space(&second.world_from_camera);
-                if free_ok(fraction) {
-                    checks.free_space_final = fraction;
-                    checks.from_sparse = true;
-                    return Tracked::new(accepted, second.world_from_camera, Some(second), checks);
-                }
-            }
-            // The dense tracker cannot hold a view that pins the pose poorly
-            // (from a start 0.5 cm off it slides 30 cm along the synthetic
-            // room's wall and floor); a strong, tight feature estimate that
-            // keeps free space clear is then the better answer, unrefined.
-            let strong = estimate.inliers >= verify.sparse_only_min_inliers
-                && estimate.rms_m <= verify.sparse_only_max_rms_m;
-            if strong && second.conditioning < RECOVERY_MIN_CONDITIONING {
-                let fraction = free_space(&sparse_pose);
-                if free_ok(fraction) {
-                    checks.free_space_final = fraction;
-                    checks.from_sparse = true;
-                    checks.sparse_only = true;
-                    return Tracked::new(accepted, sparse_pose, Some(second), checks);
-                }
-            }
-            let mut result = if first_ok { second } else { first };
-            if result.lost.is_none() {
-                result.lost = Some(LostReason::Inconsistent);
-            }
-            return lost(result, checks);
+            return judge.with_sparse(&estimate, first, checks, workspace);
         }
-        if first_clean {
+        if first.clean {
             // Moved far, and no feature estimate to confirm or refute it:
             // the dense result and free space are all there is.
             checks.free_space_final = checks.free_space_first;
-            return Tracked::new(accepted, first.world_from_camera, Some(first), checks);
+            return first.accept(&judge, checks);
         }
-        let mut first = first;
-        if first_ok {
-            first.lost = Some(LostReason::Inconsistent);
+        judge.reacquire(first, checks, workspace)
+    }
+}
+
+/// What judging the tracking of one frame reads.
+struct Judge<'a> {
+    pyramid: &'a FramePyramid,
+    prediction: &'a Prediction,
+    /// The normal tracker.
+    normal: &'a TrackerConfig,
+    /// The wide re-acquisition search ([`recovery_tracker`]).
+    recovery: &'a TrackerConfig,
+    verify: VerifyConfig,
+    /// The last good pose, `world_from_camera`.
+    previous: DAffine3,
+    /// Where the first attempt starts: `previous`, moved on by the
+    /// constant-velocity prior when on.
+    guess: DAffine3,
+    /// Frames lost in a row before this one.
+    lost_streak: u32,
+}
+
+/// The first dense attempt, from the guess.
+struct FirstAttempt {
+    result: TrackResult,
+    /// It passed the tracker's own tests ([`Judge::passes`]).
+    ok: bool,
+    /// And its points keep the model's free space clear.
+    clean: bool,
+}
+
+impl FirstAttempt {
+    fn accept(self, judge: &Judge, checks: TrackingChecks) -> Tracked {
+        let pose = self.result.world_from_camera;
+        Tracked::new(judge.accepted(), pose, Some(self.result), checks)
+    }
+}
+
+impl Judge<'_> {
+    /// Dense tracking from `from` with `config`.
+    fn track(
+        &self,
+        from: &DAffine3,
+        config: &TrackerConfig,
+        workspace: &mut TrackerWorkspace,
+    ) -> TrackResult {
+        track(self.pyramid, self.prediction, from, config, workspace)
+    }
+
+    /// The verdict of a frame whose result is accepted.
+    fn accepted(&self) -> Verdict {
+        if self.lost_streak > 0 {
+            Verdict::Recovered
+        } else {
+            Verdict::Tracked
+        }
+    }
+
+    /// Fraction of the frame's points that land in the model's free space
+    /// seen from `pose`. The coarsest level's points (160x120 from 640x480)
+    /// tell a right pose (violations <= 1 %) from a wrong one (>= 19 %) at
+    /// a sixteenth of the full resolution's cost.
+    fn free_space(&self, pose: &DAffine3) -> f64 {
+        let vertices = self.pyramid.levels.last().map_or(&[][..], |l| &l.vertices);
+        free_space_violation(self.prediction, vertices, 1, pose, &self.verify).0
+    }
+
+    fn free_ok(&self, fraction: f64) -> bool {
+        fraction <= self.verify.max_free_space_fraction
+    }
+
+    /// Passed the tracker's own tests, finite, and (after a loss) from a
+    /// view that pins all six degrees of freedom.
+    fn passes(&self, r: &TrackResult) -> bool {
+        let pinned = self.lost_streak == 0 || r.conditioning >= RECOVERY_MIN_CONDITIONING;
+        r.lost.is_none() && r.world_from_camera.is_finite() && pinned
+    }
+
+    /// Moved beyond the sparse check's thresholds from the last good pose
+    /// or from the guess.
+    fn moved(&self, pose: &DAffine3) -> bool {
+        [&self.previous, &self.guess].iter().any(|from| {
+            let (dt, dr) = se3::motion_magnitude(&(from.inverse() * *pose));
+            dt > self.verify.sparse_above_m || dr.to_degrees() > self.verify.sparse_above_deg
+        })
+    }
+
+    /// A lost frame: the pose held at `previous`, `result`'s statistics.
+    fn lost(&self, result: TrackResult, checks: TrackingChecks) -> Tracked {
+        let reason = result.lost.unwrap_or(LostReason::IllConditioned);
+        Tracked::new(Verdict::Lost(reason), self.previous, Some(result), checks)
+    }
+
+    /// Phase 1: dense tracking from the guess, with its free-space check.
+    fn first_attempt(
+        &self,
+        workspace: &mut TrackerWorkspace,
+        checks: &mut TrackingChecks,
+    ) -> FirstAttempt {
+        let result = self.track(&self.guess, self.normal, workspace);
+        checks.first_dense = Some(result.world_from_camera);
+        let ok = self.passes(&result);
+        checks.free_space_first = if ok {
+            self.free_space(&result.world_from_camera)
+        } else {
+            0.0
+        };
+        let clean = ok && self.free_ok(checks.free_space_first);
+        FirstAttempt { result, ok, clean }
+    }
+
+    /// Phase 2, with a sparse estimate: the first result if it agrees, else
+    /// dense tracking restarted at the estimate, else the estimate alone on
+    /// a view that pins the pose poorly; otherwise lost.
+    fn with_sparse(
+        &self,
+        estimate: &SparseEstimate,
+        first: FirstAttempt,
+        mut checks: TrackingChecks,
+        workspace: &mut TrackerWorkspace,
+    ) -> Tracked {
+        let verify = &self.verify;
+        let sparse_pose = self.previous * estimate.reference_from_current;
+        checks.sparse = Some((sparse_pose, estimate.inliers));
+        checks.sparse_rms_m = estimate.rms_m;
+        if first.clean && verify.agree(&first.result.world_from_camera, &sparse_pose) {
+            checks.free_space_final = checks.free_space_first;
+            return first.accept(self, checks);
+        }
+        let second = self.track(&sparse_pose, self.normal, workspace);
+        // Started at the sparse estimate, the dense tracker must land
+        // near it, or back on its first result (the sparse estimate is
+        // the less accurate of the two: on TUM fr3/teddy at strides 3-8
+        // it is up to 4.6 cm / 2.9 degrees from a dense result 1.6 cm
+        // from the truth). Not on a view that pins the pose poorly:
+        // there both dense runs slide to the same wrong place (the
+        // synthetic room's wall-and-floor views, 14 cm).
+        let landed = |pose: &DAffine3| {
+            verify.landed_near(pose, &sparse_pose)
+                || (first.clean
+                    && first.result.conditioning >= RECOVERY_MIN_CONDITIONING
+                    && verify.same_basin(pose, &first.result.world_from_camera))
+        };
+        if self.passes(&second) && landed(&second.world_from_camera) {
+            let fraction = self.free_space(&second.world_from_camera);
+            if self.free_ok(fraction) {
+                checks.free_space_final = fraction;
+                checks.from_sparse = true;
+                let verdict = self.accepted();
+                return Tracked::new(verdict, second.world_from_camera, Some(second), checks);
+            }
+        }
+        // The dense tracker cannot hold a view that pins the pose poorly
+        // (from a start 0.5 cm off it slides 30 cm along the synthetic
+        // room's wall and floor); a strong, tight feature estimate that
+        // keeps free space clear is then the better answer, unrefined.
+        let strong = estimate.inliers >= verify.sparse_only_min_inliers
+            && estimate.rms_m <= verify.sparse_only_max_rms_m;
+        if strong && second.conditioning < RECOVERY_MIN_CONDITIONING {
+            let fraction = self.free_space(&sparse_pose);
+            if self.free_ok(fraction) {
+                checks.free_space_final = fraction;
+                checks.from_sparse = true;
+                checks.sparse_only = true;
+                return Tracked::new(self.accepted(), sparse_pose, Some(second), checks);
+            }
+        }
+        let mut result = if first.ok { second } else { first.result };
+        if result.lost.is_none() {
+            result.lost = Some(LostReason::Inconsistent);
+        }
+        self.lost(result, checks)
+    }
+
+    /// Phase 2, without a sparse estimate and with a first result that is
+    /// not clean: the wide search from `previous`, checked by the normal
+    /// tracker, plausible motion for the frames lost, and free space.
+    fn reacquire(
+        &self,
+        first: FirstAttempt,
+        checks: TrackingChecks,
+        workspace: &mut TrackerWorkspace,
+    ) -> Tracked {
+        let normal = self.normal;
+        let mut first_result = first.result;
+        if first.ok {
+            first_result.lost = Some(LostReason::Inconsistent);
         }
         // Nothing to search with: skip the (costlier) wide attempt.
-        if first.lost == Some(LostReason::TooFewInliers) && first.inliers < normal.min_inliers / 4 {
-            return lost(first, checks);
+        if first_result.lost == Some(LostReason::TooFewInliers)
+            && first_result.inliers < normal.min_inliers / 4
+        {
+            return self.lost(first_result, checks);
         }
-        let wide = track(
-            &self.pyramid,
-            &self.prediction,
-            previous,
-            &self.recovery,
-            workspace,
-        );
+        let wide = self.track(&self.previous, self.recovery, workspace);
         if !wide.world_from_camera.is_finite() {
-            return lost(first, checks);
+            return self.lost(first_result, checks);
         }
-        let check = track(
-            &self.pyramid,
-            &self.prediction,
-            &wide.world_from_camera,
-            normal,
-            workspace,
-        );
+        let check = self.track(&wide.world_from_camera, normal, workspace);
         // The camera may have moved for every frame lost since `previous`.
-        let frames = f64::from(self.counts.lost_streak.min(10) + 1);
-        let (dt, dr) = se3::motion_magnitude(&(previous.inverse() * check.world_from_camera));
+        let frames = f64::from(self.lost_streak.min(10) + 1);
+        let (dt, dr) = se3::motion_magnitude(&(self.previous.inverse() * check.world_from_camera));
         let plausible = dt <= normal.max_translation_m * frames
             && dr.to_degrees() <= (normal.max_rotation_deg * frames).min(90.0);
         if check.lost.is_none()
@@ -243,18 +343,15 @@ impl Pipeline {
             && check.conditioning >= RECOVERY_MIN_CONDITIONING
             && check.world_from_camera.is_finite()
         {
-            let fraction = free_space(&check.world_from_camera);
-            if free_ok(fraction) {
+            let fraction = self.free_space(&check.world_from_camera);
+            if self.free_ok(fraction) {
+                let mut checks = checks;
                 checks.free_space_final = fraction;
-                return Tracked::new(
-                    Verdict::Recovered,
-                    check.world_from_camera,
-                    Some(check),
-                    checks,
-                );
+                let pose = check.world_from_camera;
+                return Tracked::new(Verdict::Recovered, pose, Some(check), checks);
             }
         }
-        lost(first, checks)
+        self.lost(first_result, checks)
     }
 }
 
