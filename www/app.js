@@ -24,6 +24,10 @@ const status = {
   framesLost: 0,
   framesRecovered: 0,
   framesFailed: 0,
+  framesRelocalised: 0, // frames placed by relocalisation (report.relocalisedFrom set)
+  relocalisedFrames: [], // their indices
+  loopClosures: null, // loop closures so far (null: the module reports none)
+  trajectoryReplaced: 0, // times a loop closure's whole trajectory replaced the drawn one
   surfels: 0,
   threads: 0,
   crossOriginIsolated: self.crossOriginIsolated === true,
@@ -140,6 +144,8 @@ function syncStatus() {
   status.framesLost = stats.framesLost;
   status.framesRecovered = stats.framesRecovered;
   status.framesFailed = stats.framesFailed;
+  status.framesRelocalised = stats.framesRelocalised;
+  status.loopClosures = stats.loopClosures;
   status.surfels = stats.surfels; // in the map (the report's count)
   status.surfelSlots = stats.surfelSlots; // the arrays' length (absorbed surfels not yet compacted included)
   status.ate = stats.ate;
@@ -264,6 +270,8 @@ function clearMap() {
   run = { first: 0, frames: 0 };
   sequence?.groundTruth.unanchor();
   status.positionErrorCm = null;
+  status.relocalisedFrames = [];
+  status.trajectoryReplaced = 0;
   mirror.clear();
   plots.reset();
   plots.setGroundTruth(!!sequence?.groundTruth.length);
@@ -274,6 +282,22 @@ function clearMap() {
   status.meshView = false;
   status.meshTriangles = null;
   renderer?.setShowMesh(false);
+}
+
+/**
+ * A loop closure moved past poses: the worker sent the whole trajectory
+ * (TUM text, this frame's pose included); the drawn path and the
+ * downloads' copy are replaced by it.
+ */
+function replaceTrajectory(tum) {
+  mirror.setTrajectoryTum(tum);
+  const points = tum
+    .split('\n')
+    .filter((line) => line && !line.startsWith('#'))
+    .map((line) => line.trim().split(/\s+/).slice(1, 4).map(Number))
+    .filter((p) => p.length === 3 && p.every(Number.isFinite));
+  renderer?.setTrajectory(points.slice(0, -1).map((p) => display.point(p)));
+  status.trajectoryReplaced++;
 }
 
 const handlers = {
@@ -323,6 +347,7 @@ const handlers = {
     mirror.update(msg.surfels);
     if (msg.refresh) mirror.update(msg.refresh);
     mirror.addPose(msg.result);
+    if (msg.trajectoryTum) replaceTrajectory(msg.trajectoryTum);
     const pose = display.pose(msg.result.pose);
     if (renderer) {
       renderer.updateSurfels(display.chunk(msg.surfels));
@@ -331,7 +356,13 @@ const handlers = {
     }
     const error = sequence ? sequence.groundTruth.error(msg.timestamp, pose, display, (points) => renderer?.setGroundTruth(points)) : null;
     status.positionErrorCm = error === null ? status.positionErrorCm : Number((error * 100).toFixed(3));
-    plots.add(msg.index, msg.result.timings, stats.surfels, error);
+    const relocalised = Number.isFinite(msg.result.relocalisedFrom);
+    if (relocalised) status.relocalisedFrames.push(msg.index);
+    plots.add(msg.index, msg.result.timings, stats.surfels, error, {
+      verdict: msg.result.verdict,
+      relocalised,
+      loopClosed: msg.trajectoryTum != null,
+    });
     status.plotFrames = plots.frames;
     views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow, msg.input.colourPreview, msg.input.depthPreview);
     if (msg.done) status.done = true;

@@ -56,6 +56,11 @@ export class MapMirror {
     this.poses.push(`${report.timestamp.toFixed(6)} ${[...t, ...q].map((v) => v.toFixed(9)).join(' ')}`);
   }
 
+  /** Replaces the poses with `Slam.trajectoryTum()`'s text (a loop closure moved past poses). */
+  setTrajectoryTum(tum) {
+    this.poses = tum.split('\n').filter((line) => line.trim() && !line.startsWith('#'));
+  }
+
   trajectoryTum() {
     return ['# timestamp tx ty tz qx qy qz qw', ...this.poses, ''].join('\n');
   }

@@ -1,6 +1,8 @@
 // Small live charts, plain canvas 2D: ms per frame by pipeline stage
 // (stacked), the map's surfel count, and the position error per frame
-// against the ground truth (when the sequence has one). x = frame number.
+// against the ground truth (when the sequence has one), with the verdict
+// strip under it (one colour per frame's verdict) and a tick at each frame
+// placed by relocalisation or closing a loop. x = frame number.
 // Redrawn at most a few times a second: on a machine without a GPU the
 // page's drawing shares the cores with the SLAM threads.
 
@@ -9,8 +11,19 @@ export const STAGE_COLOURS = {
   preprocess: '#b38aff',
   track: '#ff9a3c',
   fuse: '#3ee6a0',
+  loop: '#ff6ad5',
   predict: '#ffd84a',
 };
+/** Verdict strip colours; 'relocalised' is a recovered frame placed from a keyframe. */
+export const VERDICT_COLOURS = {
+  tracked: '#2f8f5b',
+  initialised: '#2f8f5b',
+  recovered: '#e0b23a',
+  relocalised: '#3fc8ff',
+  lost: '#e5484d',
+};
+const VERDICT_CODES = Object.keys(VERDICT_COLOURS);
+const MARK_COLOURS = { relocalised: VERDICT_COLOURS.relocalised, loop: '#ff6ad5' };
 const STAGES = Object.keys(STAGE_COLOURS);
 const REDRAW_MS = 250;
 
@@ -27,9 +40,11 @@ class Chart {
    * series: [{colour, values: Float64Array|number[] (NaN = no value), fill}]
    * drawn in order, all over frames 0..n-1. robust: the y axis ends at the
    * 98th percentile, so that one slow frame (the first, a page busy
-   * elsewhere) does not flatten the rest.
+   * elsewhere) does not flatten the rest. strip: per-frame indices into
+   * VERDICT_CODES (0 = none) drawn as a band under the plot; marks:
+   * [{frame, kind}] drawn as vertical ticks (kind: 'relocalised' | 'loop').
    */
-  draw(series, n, note = '', robust = false) {
+  draw(series, n, note = '', robust = false, strip = null, marks = []) {
     const dpr = Math.min(self.devicePixelRatio || 1, 2);
     const cw = Math.max(1, Math.round(this.canvas.clientWidth * dpr));
     const ch = Math.max(1, Math.round(this.canvas.clientHeight * dpr));
@@ -45,7 +60,8 @@ class Chart {
     const left = 34;
     const top = 16;
     const plotW = w - left - 6;
-    const plotH = h - top - 14;
+    const stripH = strip ? 4 : 0;
+    const plotH = h - top - 14 - stripH;
     let max = 0;
     if (robust && n > 0) {
       const all = [];
@@ -72,8 +88,32 @@ class Chart {
     ctx.strokeStyle = '#3a4252';
     ctx.lineWidth = 1;
     ctx.strokeRect(left + 0.5, top + 0.5, plotW, plotH);
-    if (n === 0 || yMax <= 0) return;
+    if (n === 0) return;
     const x = (i) => left + (n === 1 ? plotW : (i / (n - 1)) * plotW);
+    if (strip && n > 0) {
+      // Per pixel column the worst verdict of its frames (lost over relocalised over ...).
+      const colW = plotW / n;
+      const columns = Math.min(n, Math.ceil(plotW));
+      for (let c = 0; c < columns; c++) {
+        const from = Math.floor((c * n) / columns);
+        const to = Math.max(from + 1, Math.floor(((c + 1) * n) / columns));
+        let code = 0;
+        for (let i = from; i < to; i++) code = Math.max(code, strip[i] ?? 0);
+        if (code === 0) continue;
+        ctx.fillStyle = VERDICT_COLOURS[VERDICT_CODES[code - 1]];
+        ctx.fillRect(left + from * colW, top + plotH + 1, Math.max(1, (to - from) * colW), stripH);
+      }
+    }
+    for (const m of marks) {
+      if (m.frame >= n) continue;
+      ctx.strokeStyle = MARK_COLOURS[m.kind] ?? '#fff';
+      ctx.lineWidth = 1;
+      ctx.beginPath();
+      ctx.moveTo(Math.round(x(m.frame)) + 0.5, top);
+      ctx.lineTo(Math.round(x(m.frame)) + 0.5, top + plotH + stripH);
+      ctx.stroke();
+    }
+    if (yMax <= 0) return;
     const y = (v) => top + plotH - (Math.min(v, yMax) / yMax) * plotH;
     // At most about one point per pixel column: the largest value of each column's frames.
     const step = Math.max(1, Math.floor(n / plotW));
@@ -161,14 +201,31 @@ export class Plots {
     this.stages = Object.fromEntries(STAGES.map((s) => [s, new Series()]));
     this.surfels = new Series();
     this.error = new Series();
+    this.verdicts = new Uint8Array(256); // VERDICT_CODES index + 1 per frame, 0 = none
+    this.marks = []; // {frame, kind}: relocalised frames and loop closures
     this.frames = 0;
     this.hasGroundTruth = false;
     this.schedule(true);
   }
 
-  /** One processed frame: its index, the report's timings (ms), the surfel count, the position error (m) or null. */
-  add(index, timings, surfels, errorM) {
+  /**
+   * One processed frame: its index, the report's timings (ms), the surfel
+   * count, the position error (m) or null, and what happened to it:
+   * {verdict, relocalised (placed from a keyframe), loopClosed (closed a loop)}.
+   */
+  add(index, timings, surfels, errorM, { verdict = null, relocalised = false, loopClosed = false } = {}) {
     for (const s of STAGES) this.stages[s].set(index, Number(timings?.[s]) || 0);
+    const shown = relocalised ? 'relocalised' : verdict;
+    if (VERDICT_CODES.includes(shown)) {
+      if (index >= this.verdicts.length) {
+        const grown = new Uint8Array(Math.max(index + 1, 2 * this.verdicts.length));
+        grown.set(this.verdicts);
+        this.verdicts = grown;
+      }
+      this.verdicts[index] = VERDICT_CODES.indexOf(shown) + 1;
+    }
+    if (relocalised) this.marks.push({ frame: index, kind: 'relocalised' });
+    if (loopClosed) this.marks.push({ frame: index, kind: 'loop' });
     this.surfels.set(index, surfels);
     if (Number.isFinite(errorM)) this.error.set(index, errorM * 100);
     this.frames = Math.max(this.frames, index + 1);
@@ -225,7 +282,7 @@ export class Plots {
     if (error) {
       const latest = this.latestErrorCm();
       const note = !this.hasGroundTruth ? 'no ground truth' : latest === null ? '' : `${latest.toFixed(2)} cm`;
-      error.draw([{ colour: '#3ee65a', values: this.error.values }], n, note);
+      error.draw([{ colour: '#3ee65a', values: this.error.values }], n, note, false, this.verdicts, this.marks);
     }
   }
 }

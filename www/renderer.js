@@ -3,170 +3,18 @@
 // (mouse, wheel, touch) and a follow-the-camera mode, the estimated and the
 // ground-truth trajectories, the current camera frustum.
 //
-// GPU buffers are preallocated with a capacity that grows geometrically (old
-// contents copied GPU-side) and are updated with bufferSubData over the
-// changed surfel range only.
-import { vec3, multiply, invertRigid, transformPoint, column, perspective, lookAt } from './math3d.js';
+// Beside this file: gl-shaders.js (shader sources), surfel-buffers.js (the
+// surfels' GPU buffers, updated over each frame's changed range),
+// gl-lines.js (camera paths and frustum), pointer-controls.js (mouse and
+// touch input).
+import { vec3, multiply, invertRigid, column, perspective, lookAt } from './math3d.js';
 import { MeshView } from './mesh-view.js';
+import { MODES, SURFEL_VS, SURFEL_FS, LINE_VS, LINE_FS, compile } from './gl-shaders.js';
+import { SurfelBuffers } from './surfel-buffers.js';
+import { Lines, frustumPoints } from './gl-lines.js';
+import { installPointerControls } from './pointer-controls.js';
 
-const SURFEL_VS = `#version 300 es
-layout(location = 0) in vec3 aPosition;
-layout(location = 1) in vec3 aNormal;
-layout(location = 2) in vec4 aColour;
-layout(location = 3) in float aRadius;
-layout(location = 4) in float aConfidence;
-uniform mat4 uView;
-uniform mat4 uProj;
-uniform float uPixelsPerUnit;   // viewport height / (2 tan(fovy/2))
-uniform float uSizeScale;
-uniform float uMaxPointSize;
-uniform float uConfidenceMax;
-uniform int uMode;              // 0 rgb, 1 normal, 2 confidence
-out vec3 vColour;
-
-vec3 turbo(float x) {
-  x = clamp(x, 0.0, 1.0);
-  vec4 kR = vec4(0.13572138, 4.61539260, -42.66032258, 132.13108234);
-  vec4 kG = vec4(0.09140261, 2.19418839, 4.84296658, -14.18503333);
-  vec4 kB = vec4(0.10667330, 12.64194608, -60.58204836, 110.36276771);
-  vec2 kR2 = vec2(-152.94239396, 59.28637943);
-  vec2 kG2 = vec2(4.27729857, 2.82956604);
-  vec2 kB2 = vec2(-89.90310912, 27.34824973);
-  vec4 v4 = vec4(1.0, x, x * x, x * x * x);
-  vec2 v2 = v4.zw * v4.z;
-  return vec3(dot(v4, kR) + dot(v2, kR2), dot(v4, kG) + dot(v2, kG2), dot(v4, kB) + dot(v2, kB2));
-}
-
-void main() {
-  // Absorbed into another surfel (negative confidence): gone from the map at
-  // the next compaction; hidden as soon as its confidence reaches the GPU.
-  if (aConfidence < 0.0) {
-    gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
-    gl_PointSize = 0.0;
-    vColour = vec3(0.0);
-    return;
-  }
-  vec4 eye = uView * vec4(aPosition, 1.0);
-  gl_Position = uProj * eye;
-  float z = max(-eye.z, 1e-3);
-  gl_PointSize = clamp(2.0 * aRadius * uSizeScale * uPixelsPerUnit / z, 1.0, uMaxPointSize);
-  if (uMode == 1) {
-    vColour = normalize(aNormal) * 0.5 + 0.5;
-  } else if (uMode == 2) {
-    vColour = turbo(aConfidence / uConfidenceMax);
-  } else {
-    vColour = aColour.rgb;
-  }
-}`;
-
-const SURFEL_FS = `#version 300 es
-precision mediump float;
-in vec3 vColour;
-out vec4 outColour;
-void main() {
-  vec2 c = gl_PointCoord * 2.0 - 1.0;
-  float r2 = dot(c, c);
-  if (r2 > 1.0) discard;
-  outColour = vec4(vColour * (1.0 - 0.15 * r2), 1.0);
-}`;
-
-const LINE_VS = `#version 300 es
-layout(location = 0) in vec3 aPosition;
-uniform mat4 uView;
-uniform mat4 uProj;
-void main() { gl_Position = uProj * uView * vec4(aPosition, 1.0); }`;
-
-const LINE_FS = `#version 300 es
-precision mediump float;
-uniform vec4 uColour;
-out vec4 outColour;
-void main() { outColour = uColour; }`;
-
-// name, components, GL type, bytes per component, normalised
-const ATTRIBUTES = [
-  ['positions', 3, 'FLOAT', 4, false],
-  ['normals', 3, 'FLOAT', 4, false],
-  ['colours', 4, 'UNSIGNED_BYTE', 1, true],
-  ['radii', 1, 'FLOAT', 4, false],
-  ['confidences', 1, 'FLOAT', 4, false],
-];
-
-const MODES = { rgb: 0, normal: 1, confidence: 2 };
 const FOVY = (55 * Math.PI) / 180;
-
-function compile(gl, vsSource, fsSource) {
-  const program = gl.createProgram();
-  for (const [type, source] of [
-    [gl.VERTEX_SHADER, vsSource],
-    [gl.FRAGMENT_SHADER, fsSource],
-  ]) {
-    const shader = gl.createShader(type);
-    gl.shaderSource(shader, source);
-    gl.compileShader(shader);
-    if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS)) throw new Error(`shader: ${gl.getShaderInfoLog(shader)}`);
-    gl.attachShader(program, shader);
-  }
-  gl.linkProgram(program);
-  if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(`program: ${gl.getProgramInfoLog(program)}`);
-  const uniforms = {};
-  const n = gl.getProgramParameter(program, gl.ACTIVE_UNIFORMS);
-  for (let i = 0; i < n; i++) {
-    const name = gl.getActiveUniform(program, i).name;
-    uniforms[name] = gl.getUniformLocation(program, name);
-  }
-  return { program, uniforms };
-}
-
-/** A growable line buffer (trajectories) or a fixed one (frustum). */
-class Lines {
-  constructor(gl, colour, mode) {
-    this.gl = gl;
-    this.colour = colour;
-    this.mode = mode;
-    this.count = 0;
-    this.capacity = 0;
-    this.data = new Float32Array(0);
-    this.buffer = gl.createBuffer();
-    this.vao = gl.createVertexArray();
-    gl.bindVertexArray(this.vao);
-    gl.bindBuffer(gl.ARRAY_BUFFER, this.buffer);
-    gl.enableVertexAttribArray(0);
-    gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
-    gl.bindVertexArray(null);
-  }
-
-  set(points) {
-    const gl = this.gl;
-    const flat = new Float32Array(points.length * 3);
-    points.forEach((p, i) => flat.set(p, i * 3));
-    gl.bindBuffer(gl.ARRAY_BUFFER, this.buffer);
-    gl.bufferData(gl.ARRAY_BUFFER, flat, gl.DYNAMIC_DRAW);
-    this.count = points.length;
-    this.capacity = points.length;
-  }
-
-  /** Appends one point (trajectory), growing the buffer geometrically. */
-  push(p) {
-    const gl = this.gl;
-    gl.bindBuffer(gl.ARRAY_BUFFER, this.buffer);
-    if (this.count + 1 > this.capacity) {
-      const capacity = Math.max(256, this.capacity * 2);
-      const data = new Float32Array(capacity * 3);
-      data.set(this.data.subarray(0, this.count * 3));
-      this.data = data;
-      this.capacity = capacity;
-      gl.bufferData(gl.ARRAY_BUFFER, data, gl.DYNAMIC_DRAW);
-    }
-    this.data.set(p, this.count * 3);
-    gl.bufferSubData(gl.ARRAY_BUFFER, this.count * 12, this.data, this.count * 3, 3);
-    this.count++;
-  }
-
-  clear() {
-    this.count = 0;
-    this.pending = [];
-  }
-}
 
 export class Renderer {
   constructor(canvas) {
@@ -178,18 +26,12 @@ export class Renderer {
     this.lineProgram = compile(gl, LINE_VS, LINE_FS);
     this.maxPointSize = gl.getParameter(gl.ALIASED_POINT_SIZE_RANGE)[1];
 
-    this.count = 0;
-    this.capacity = 0;
-    this.buffers = {};
-    this.pending = [];
-    this.uploadedSurfels = 0;
+    this.surfels = new SurfelBuffers(gl);
     this.fence = null;
     this.fenceIssuedAt = 0;
     this.gpuMs = 0; // how long the GPU took for the last frame (issue -> fence signalled)
     this.lastDrawAt = 0;
     this.throttle = false; // while SLAM runs: leave the GPU (often a CPU rasteriser) idle 3/4 of the time
-    this.vao = gl.createVertexArray();
-    this.ensureCapacity(1 << 16);
 
     this.trajectory = new Lines(gl, [1.0, 0.55, 0.1, 1], gl.LINE_STRIP);
     this.groundTruth = new Lines(gl, [0.2, 0.9, 0.3, 1], gl.LINE_STRIP);
@@ -213,96 +55,48 @@ export class Renderer {
     this.viewInitialised = false;
     this.currentPose = null;
     this.intrinsics = null;
-    this.bounds = null; // running bounding box of received surfels
 
     this.dirty = true;
     this.lastDrawMs = 0;
-    this.installControls();
+    installPointerControls(canvas, this);
     this.frameLoop = this.frameLoop.bind(this);
     requestAnimationFrame(this.frameLoop);
   }
 
-  // ---- GPU buffers ------------------------------------------------------------
+  // ---- surfels -------------------------------------------------------------------
 
-  ensureCapacity(n) {
-    if (n <= this.capacity) return;
-    const gl = this.gl;
-    const capacity = Math.max(n, this.capacity * 2, 1 << 16);
-    gl.bindVertexArray(this.vao);
-    ATTRIBUTES.forEach(([name, components, type, bytes, normalised], location) => {
-      const old = this.buffers[name];
-      const buffer = gl.createBuffer();
-      gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
-      gl.bufferData(gl.ARRAY_BUFFER, capacity * components * bytes, gl.DYNAMIC_DRAW);
-      if (old && this.count > 0) {
-        gl.bindBuffer(gl.COPY_READ_BUFFER, old);
-        gl.copyBufferSubData(gl.COPY_READ_BUFFER, gl.ARRAY_BUFFER, 0, 0, this.count * components * bytes);
-        gl.bindBuffer(gl.COPY_READ_BUFFER, null);
-      }
-      if (old) gl.deleteBuffer(old);
-      this.buffers[name] = buffer;
-      gl.enableVertexAttribArray(location);
-      gl.vertexAttribPointer(location, components, gl[type], normalised, 0, 0);
-    });
-    gl.bindVertexArray(null);
-    this.capacity = capacity;
+  /** Surfels drawn (the map's arrays' length, absorbed ones included). */
+  get count() {
+    return this.surfels.count;
+  }
+
+  /** Surfels written to the GPU since creation. */
+  get uploadedSurfels() {
+    return this.surfels.uploadedSurfels;
+  }
+
+  /** Running bounding box of the received surfels, null when none. */
+  get bounds() {
+    return this.surfels.bounds;
   }
 
   /**
-   * Queues one frame's changed surfel range ({count, start, end, positions, ...}).
-   * Uploads happen just before the next draw, so frames that arrive while the
-   * GPU is still busy are coalesced (a range covered by a later one is skipped).
+   * Queues one frame's changed surfel range ({count, start, end, positions,
+   * normals, colours, radii, confidences}); uploaded just before the next
+   * draw. A range over the whole map (a loop closure moved every surfel)
+   * replaces the map and its bounds.
    */
   updateSurfels(chunk) {
-    this.pending.push(chunk);
-    if (chunk.end > chunk.start) this.growBounds(chunk.positions);
+    this.surfels.queue(chunk);
     this.dirty = true;
   }
 
   flushUploads() {
-    const list = this.pending;
-    if (list.length === 0) return;
-    this.pending = [];
-    const gl = this.gl;
-    const last = list[list.length - 1];
-    this.ensureCapacity(Math.max(...list.map((c) => Math.max(c.count, c.end))));
-    for (let i = 0; i < list.length; i++) {
-      const c = list[i];
-      if (c.end <= c.start) continue;
-      let covered = false;
-      for (let j = i + 1; j < list.length && !covered; j++) covered = list[j].start <= c.start && list[j].end >= c.end;
-      if (covered) continue;
-      ATTRIBUTES.forEach(([name, components, , bytes]) => {
-        gl.bindBuffer(gl.ARRAY_BUFFER, this.buffers[name]);
-        gl.bufferSubData(gl.ARRAY_BUFFER, c.start * components * bytes, c[name]);
-      });
-      this.uploadedSurfels += c.end - c.start;
-    }
-    gl.bindBuffer(gl.ARRAY_BUFFER, null);
-    this.count = last.count;
-  }
-
-  growBounds(positions) {
-    const step = Math.max(1, Math.floor(positions.length / 3 / 2000)) * 3;
-    let b = this.bounds;
-    for (let i = 0; i + 2 < positions.length; i += step) {
-      const p = [positions[i], positions[i + 1], positions[i + 2]];
-      if (!Number.isFinite(p[0] + p[1] + p[2])) continue;
-      if (!b) b = { min: [...p], max: [...p], sum: [0, 0, 0], n: 0 };
-      for (let k = 0; k < 3; k++) {
-        b.min[k] = Math.min(b.min[k], p[k]);
-        b.max[k] = Math.max(b.max[k], p[k]);
-        b.sum[k] += p[k];
-      }
-      b.n++;
-    }
-    this.bounds = b;
+    this.surfels.flush();
   }
 
   clear() {
-    this.count = 0;
-    this.pending = [];
-    this.bounds = null;
+    this.surfels.clear();
     this.trajectory.clear();
     this.groundTruth.clear();
     this.frustum.clear();
@@ -326,6 +120,15 @@ export class Renderer {
     this.dirty = true;
   }
 
+  /**
+   * Replaces the estimated path (world positions of every camera so far, in
+   * the display frame), e.g. after a loop closure moved past poses.
+   */
+  setTrajectory(points) {
+    this.trajectory.set(points);
+    this.dirty = true;
+  }
+
   setGroundTruth(points) {
     if (points && points.length) this.groundTruth.set(points);
     else this.groundTruth.clear();
@@ -337,12 +140,7 @@ export class Renderer {
     if (!pose) return;
     const k = this.intrinsics ?? { fx: 525, fy: 525, cx: 319.5, cy: 239.5, width: 640, height: 480 };
     const d = Math.max(0.06, Math.min(0.2, this.sceneSize() * 0.04));
-    const corner = (u, v) => transformPoint(pose, [((u - k.cx) / k.fx) * d, ((v - k.cy) / k.fy) * d, d]);
-    const o = [pose[12], pose[13], pose[14]];
-    const c = [corner(0, 0), corner(k.width, 0), corner(k.width, k.height), corner(0, k.height)];
-    // the "up" tick marks the image's top edge
-    const top = transformPoint(pose, [0, ((0 - k.cy) / k.fy) * d * 1.35, d]);
-    this.frustum.set([o, c[0], o, c[1], o, c[2], o, c[3], c[0], c[1], c[1], c[2], c[2], c[3], c[3], c[0], c[0], top, top, c[1]]);
+    this.frustum.set(frustumPoints(pose, k, d));
   }
 
   sceneSize() {
@@ -597,7 +395,7 @@ export class Renderer {
       gl.uniform1f(u.uMaxPointSize, Math.min(this.maxPointSize, 64));
       gl.uniform1f(u.uConfidenceMax, this.confidenceMax);
       gl.uniform1i(u.uMode, MODES[this.mode]);
-      gl.bindVertexArray(this.vao);
+      gl.bindVertexArray(this.surfels.vao);
       gl.drawArrays(gl.POINTS, 0, this.count);
       gl.bindVertexArray(null);
     }

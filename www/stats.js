@@ -1,8 +1,10 @@
-// Live statistics: frames, tracked / lost, surfels, frames per second, ms per
-// pipeline stage (moving average), ATE so far (computed in the worker with the
-// wasm module's ateTum when the sequence has ground truth).
+// Live statistics: frames, tracked / lost, relocalised frames and loop
+// closures, surfels, frames per second, ms per pipeline stage (moving
+// average), ATE so far (computed in the worker with the wasm module's ateTum
+// when the sequence has ground truth).
 
-const STAGES = ['decode', 'preprocess', 'track', 'fuse', 'predict', 'total'];
+// 'loop' (loop closure) is reported by modules that have the stage; shown only then.
+const STAGES = ['decode', 'preprocess', 'track', 'fuse', 'loop', 'predict', 'total'];
 // The worker's own time per frame around the wasm call (see worker.js processNext).
 const WORKER_STEPS = ['read', 'push', 'copy', 'ate', 'gap', 'wall'];
 const WINDOW = 15;
@@ -34,6 +36,10 @@ export class Stats {
     this.atePairs = 0;
     this.lastVerdict = '';
     this.lastLostReason = null;
+    this.framesRelocalised = 0;
+    this.lastRelocalised = null; // {frame, keyframe}: the latest frame placed by relocalisation
+    this.loopClosures = null; // closures so far (null: the module reports none)
+    this.hasLoopStage = false;
     this.recent = []; // {t, timings, wall}
     this.fps = 0;
     this.msPerFrame = 0;
@@ -55,6 +61,12 @@ export class Stats {
     else this.framesTracked++;
     this.lastVerdict = r.verdict;
     this.lastLostReason = r.lostReason ?? null;
+    if (Number.isFinite(r.relocalisedFrom)) {
+      this.framesRelocalised++;
+      this.lastRelocalised = { frame: msg.index, keyframe: r.relocalisedFrom };
+    }
+    if (Number.isFinite(r.loopClosures)) this.loopClosures = r.loopClosures;
+    if (Number.isFinite(r.timings?.loop)) this.hasLoopStage = true;
     // The report's count is what the map holds (absorbed surfels awaiting
     // compaction left out, as in the PLY); the arrays' length is only what is drawn.
     this.surfels = Number.isFinite(r.surfels) ? r.surfels : msg.surfels.count;
@@ -113,13 +125,22 @@ export class Stats {
       ['frame', this.frameIndex >= 0 ? `${this.frameIndex + 1} / ${this.frameCount}` : '–'],
       ['processed', `${this.framesProcessed}`],
       ['tracked / lost / recovered', `${this.framesTracked} / ${this.framesLost} / ${this.framesRecovered}`],
+      [
+        'relocalised',
+        this.lastRelocalised
+          ? `${this.framesRelocalised} (last: frame ${this.lastRelocalised.frame + 1} at keyframe ${this.lastRelocalised.keyframe + 1})`
+          : `${this.framesRelocalised}`,
+      ],
+      ['loop closures', this.loopClosures === null ? '–' : `${this.loopClosures}`],
       ['failed (errors)', `${this.framesFailed}`],
       ['last verdict', this.lastVerdict ? this.lastVerdict + (this.lastLostReason ? ` (${this.lastLostReason})` : '') : '–'],
       ['surfels', this.surfels.toLocaleString('en-US')],
       ['ATE rmse', this.ate === null ? '–' : `${(this.ate * 100).toFixed(this.ate < 0.01 ? 2 : 1)} cm (${this.atePairs} poses)`],
       ['fps', this.fps > 0 ? f1(this.fps) : '–'],
       ['ms / frame (wasm)', f1(this.stageMs.total)],
-      ...STAGES.slice(0, -1).map((s) => [`\u2003${s}`, f1(this.stageMs[s])]),
+      ...STAGES.slice(0, -1)
+        .filter((s) => s !== 'loop' || this.hasLoopStage)
+        .map((s) => [`\u2003${s}`, f1(this.stageMs[s])]),
       ['ms / frame (worker)', f1(this.wallMs)],
       ['changed surfels', this.changed === undefined ? '–' : this.changed.toLocaleString('en-US')],
     ];

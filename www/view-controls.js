@@ -1,19 +1,23 @@
 // The view options of the panel (colour mode, splat size, follow, what is
 // drawn, plots) and the hint naming the panel's sections below the fold.
 // Used by app.js.
-import { STAGE_COLOURS } from './plots.js';
+import { STAGE_COLOURS, VERDICT_COLOURS } from './plots.js';
 
 const $ = (id) => document.getElementById(id);
 
 /** Wires the view controls to `renderer` (null when WebGL is unavailable) and `plots`. */
 export function wireViewControls({ renderer, plots }) {
-  // The stage colours of the timing chart.
+  // The stage colours of the timing chart, then the verdict strip's.
+  const legend = ([name, colour]) => {
+    const swatch = document.createElement('span');
+    swatch.style.background = colour;
+    return [swatch, document.createTextNode(name)];
+  };
+  const verdicts = Object.entries(VERDICT_COLOURS).filter(([name]) => name !== 'initialised');
   $('plot-legend').replaceChildren(
-    ...Object.entries(STAGE_COLOURS).flatMap(([name, colour]) => {
-      const swatch = document.createElement('span');
-      swatch.style.background = colour;
-      return [swatch, document.createTextNode(name)];
-    }),
+    ...Object.entries(STAGE_COLOURS).flatMap(legend),
+    document.createTextNode(' · frames:'),
+    ...verdicts.flatMap(legend),
   );
 
   // A hint naming the panel's sections below the fold (at 1280x800 the

@@ -24,6 +24,7 @@ import { PREVIEW_WIDTH, PREVIEW_HEIGHT } from './colour-decode.js';
 import { errorText, isModuleFailure, startModule as loadModule, toPlain } from './wasm-module.js';
 import { FrameFeed, describeFrameError } from './frame-feed.js';
 import { copyChanged, RollingRefresh, surfelBuffers } from './surfel-copy.js';
+import { coversWholeMap } from './surfel-buffers.js';
 import { answerExport } from './worker-exports.js';
 
 let wasm = null;
@@ -40,6 +41,7 @@ let pumping = false;
 const feed = new FrameFeed(new URL(self.location.href).searchParams.get('colour') !== 'wasm');
 let framesOk = 0;
 let surfelCount = 0; // the map's size after the last frame (read without calling into the module)
+let loopClosures = 0; // the report's loop closure count after the last frame
 let failure = null; // {message}: the module failed; rebuilt at the next action that needs it
 let instance = 0; // module instances started (a failed one is replaced, not reused)
 let testBreak = false; // test hook: the next call into the module fails
@@ -155,6 +157,7 @@ function restart() {
   next = 0;
   framesOk = 0;
   surfelCount = 0;
+  loopClosures = 0;
   refresh.restart();
   feed.restart();
 }
@@ -305,7 +308,13 @@ async function processNext() {
   const count = slam.surfelCount;
   surfelCount = count;
   const surfels = copyChanged(slam, count);
-  const refreshed = refresh.next(slam, count);
+  // A range over the whole map (a loop closure moved every surfel) already
+  // holds what the rolling window would bring.
+  const refreshed = coversWholeMap(surfels) ? null : refresh.next(slam, count);
+  // A loop closure also moved the past poses: the whole trajectory, as TUM text.
+  const closures = Number.isFinite(r.loopClosures) ? r.loopClosures : 0;
+  const trajectoryTum = closures > loopClosures ? slam.trajectoryTum() : null;
+  loopClosures = closures;
   const tCopy = performance.now();
 
   let ate = null;
@@ -332,6 +341,7 @@ async function processNext() {
       colourDecoder,
       surfels,
       refresh: refreshed,
+      trajectoryTum,
       ate,
       timing: {
         read: tRead - t0,
@@ -355,7 +365,7 @@ async function processNext() {
     },
     [
       ...surfelBuffers(surfels),
-      ...surfelBuffers(refreshed),
+      ...(refreshed ? surfelBuffers(refreshed) : []),
       colourBuf,
       depthBuf,
       depthPreview.metres.buffer,

@@ -47,6 +47,8 @@ export interface FrameReport {
   skipped: number;
   /** Verdict counts of the run so far, this frame included; lostStreak: frames lost in a row. */
   counts: { tracked: number; lost: number; recovered: number; lostStreak: number };
+  /** Lost and then placed by relocalisation: the frame index of the keyframe it was placed by; else null. */
+  relocalisedFrom: number | null;
   /** Milliseconds per stage. */
   timings: { decode: number; preprocess: number; track: number; fuse: number; predict: number; total: number };
 }
@@ -194,6 +196,12 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
                 ("lostStreak", r.counts.lost_streak.into()),
             ])
             .into(),
+        ),
+        (
+            "relocalisedFrom",
+            r.checks
+                .relocalised_from
+                .map_or(JsValue::NULL, |frame| frame.into()),
         ),
         ("timings", timings.into()),
     ])

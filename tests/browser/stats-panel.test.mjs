@@ -1,0 +1,71 @@
+// The statistics panel and the plots show relocalisation and loop closure:
+// frame reports as the module gives them (a frame relocalised from a
+// keyframe, a loop closure count, the loop stage's time) fed to stats.js and
+// plots.js in headless Chromium; the table's text and the verdict strip's
+// pixels read back.
+import { test } from 'node:test';
+import assert from 'node:assert/strict';
+import { startBrowser, skipUnlessReady } from './helpers.mjs';
+
+test('relocalised frames, loop closures and the loop stage time reach the panel and the verdict strip', { timeout: 120_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const env = await startBrowser();
+  try {
+    const page = await env.context.newPage();
+    await page.route('**/favicon.ico', (route) => route.fulfill({ status: 204 }));
+    const errors = [];
+    page.on('pageerror', (e) => errors.push(`pageerror: ${e.message}`));
+    await page.goto(new URL('/stats.js', env.server.url).href);
+    await page.setContent('<!doctype html><body><table id="stats"></table><canvas id="error" style="width:200px;height:80px"></canvas></body>');
+    const r = await page.evaluate(async () => {
+      const { Stats } = await import('/stats.js');
+      const { Plots, VERDICT_COLOURS } = await import('/plots.js');
+      const table = document.getElementById('stats');
+      const stats = new Stats(table);
+      const plots = new Plots({ error: document.getElementById('error') });
+      const verdicts = ['tracked', 'tracked', 'lost', 'lost', 'recovered', 'tracked', 'tracked', 'tracked'];
+      const rows = () => Object.fromEntries([...table.rows].map((tr) => [tr.cells[0].textContent.trim(), tr.cells[1].textContent]));
+      let withoutLoop = null;
+      verdicts.forEach((verdict, index) => {
+        const relocalisedFrom = index === 4 ? 1 : null;
+        const loop = index >= 6; // a module with the loop stage from frame 6 on
+        const timings = { decode: 1, preprocess: 1, track: 2, fuse: 3, predict: 1, total: 8, ...(loop ? { loop: 4 } : {}) };
+        const result = { verdict, relocalisedFrom, timings, surfels: 100, ...(loop ? { loopClosures: index === 7 ? 1 : 0 } : {}) };
+        stats.onFrame({ index, frameCount: verdicts.length, result, surfels: { count: 100, start: 0, end: 0 }, timing: { wall: 9 } });
+        plots.add(index, timings, 100, 0.01, { verdict, relocalised: relocalisedFrom !== null, loopClosed: index === 7 });
+        if (index === 5) withoutLoop = rows();
+      });
+      plots.draw();
+      const canvas = document.getElementById('error');
+      const ctx = canvas.getContext('2d');
+      const hex = (c) => [1, 3, 5].map((i) => parseInt(c.slice(i, i + 2), 16));
+      const seen = {};
+      const data = ctx.getImageData(0, 0, canvas.width, canvas.height).data;
+      for (const [name, colour] of Object.entries(VERDICT_COLOURS)) {
+        const [r, g, b] = hex(colour);
+        let n = 0;
+        for (let i = 0; i < data.length; i += 4) if (Math.abs(data[i] - r) < 3 && Math.abs(data[i + 1] - g) < 3 && Math.abs(data[i + 2] - b) < 3) n++;
+        seen[name] = n;
+      }
+      return { rows: rows(), withoutLoop, seen, marks: plots.marks, strip: Array.from(plots.verdicts.subarray(0, verdicts.length)) };
+    });
+    assert.equal(r.rows['relocalised'], '1 (last: frame 5 at keyframe 2)');
+    assert.equal(r.rows['loop closures'], '1');
+    // The window's mean: 4 ms on the last two of its eight frames.
+    assert.equal(r.rows['loop'], '1.0', 'the loop stage time once reported');
+    assert.equal(r.withoutLoop['loop closures'], '–', 'no count before the module reports one');
+    assert.equal(r.withoutLoop['loop'], undefined, 'no loop stage row before the module reports one');
+    assert.equal(r.rows['tracked / lost / recovered'], '5 / 2 / 1');
+    assert.deepEqual(r.marks, [
+      { frame: 4, kind: 'relocalised' },
+      { frame: 7, kind: 'loop' },
+    ]);
+    // tracked 1, lost 5, relocalised 4 (VERDICT_CODES order + 1).
+    assert.deepEqual(r.strip, [1, 1, 5, 5, 4, 1, 1, 1]);
+    for (const name of ['tracked', 'lost', 'relocalised']) assert.ok(r.seen[name] > 0, `${name} drawn in the strip: ${JSON.stringify(r.seen)}`);
+    assert.equal(r.seen.recovered, 0, 'the relocalised frame is shown as relocalised, not only recovered');
+    assert.deepEqual(errors, []);
+  } finally {
+    await env.close();
+  }
+});
