@@ -27,6 +27,7 @@
 //! its arguments (not on the thread count).
 
 mod loop_path;
+mod map_error;
 mod noise;
 mod raycast;
 mod render;
@@ -35,6 +36,7 @@ mod texture;
 mod trajectory;
 
 pub use loop_path::loop_pose;
+pub use map_error::{map_error, MapError};
 pub use noise::NoiseModel;
 pub use render::{render, render_into, RenderedFrame, SyntheticError, DEPTH_UNITS_PER_METRE};
 pub use scene::{Scene, SceneBox, ROOM_MAX, ROOM_MIN};
