@@ -49,6 +49,10 @@ pub struct LoopClosureConfig {
     pub max_correction_m: f64,
     /// ... or this rotation, degrees.
     pub max_correction_deg: f64,
+    /// Pixel step (in both directions) between the active points sampled as
+    /// deformation constraints, each with the inactive point at the same
+    /// pixel as a pin.
+    pub constraint_step: usize,
     /// Pixel step of the free-space check.
     pub free_space_step: usize,
     /// Refuse when more than this fraction of one model's points, corrected,
@@ -77,6 +81,7 @@ impl Default for LoopClosureConfig {
             min_correction_deg: 0.5,
             max_correction_m: 0.15,
             max_correction_deg: 10.0,
+            constraint_step: 8,
             free_space_step: 2,
             max_free_space_fraction: 0.05,
         }
