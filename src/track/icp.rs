@@ -13,9 +13,9 @@
 //! the step solves `(sum w_i A_i^T A_i) xi = -(sum w_i A_i^T b_i)` with a
 //! Huber weight `w_i` on `r`. The new estimate is `exp(xi) T`.
 
-use crate::fusion::index_map::RigidF32;
 use crate::fusion::Prediction;
 use crate::preprocess::PyramidLevel;
+use crate::se3::RigidF32;
 use crate::se3::{NormalEquations, RowAccumulator};
 use glam::Vec3;
 use rayon::prelude::*;
