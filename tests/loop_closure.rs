@@ -136,6 +136,7 @@ fn predictions(
                 vertices: measured,
                 tiles: &tiles,
             },
+            0..u32::MAX,
             |i| include(i),
         );
         p

@@ -12,7 +12,7 @@
 //! the inverse of that pose, so the correction `world_from_camera * T` is
 //! the identity when the two models already coincide.
 
-use crate::fusion::index_map::RigidF32;
+use crate::se3::RigidF32;
 use crate::fusion::Prediction;
 use crate::preprocess::PyramidLevel;
 use crate::se3;
