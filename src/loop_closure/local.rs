@@ -12,10 +12,10 @@
 //! the inverse of that pose, so the correction `world_from_camera * T` is
 //! the identity when the two models already coincide.
 
-use crate::se3::RigidF32;
 use crate::fusion::Prediction;
 use crate::preprocess::PyramidLevel;
 use crate::se3;
+use crate::se3::RigidF32;
 use crate::track::icp::icp_step;
 use crate::track::verify::{free_space_violation, VerifyConfig};
 use glam::{DAffine3, Vec3};

@@ -11,9 +11,14 @@
 //!
 //! Poses are `world_from_camera` (metres); times are frame indices.
 
+pub mod closer;
+pub mod deformation;
 pub mod local;
 
+pub use closer::{LoopCloser, LoopFrame, LoopOutcome};
+
 use crate::track::icp::IcpGates;
+use deformation::DeformConfig;
 
 /// Settings of loop closure (issue #21): when it runs and what it accepts.
 #[derive(Debug, Clone, PartialEq)]
@@ -59,6 +64,8 @@ pub struct LoopClosureConfig {
     /// lie in front of the other model's surface (margins of the tracker's
     /// `VerifyConfig`).
     pub max_free_space_fraction: f64,
+    /// The deformation graph that bends the map on a closure.
+    pub deform: DeformConfig,
 }
 
 impl Default for LoopClosureConfig {
@@ -84,6 +91,7 @@ impl Default for LoopClosureConfig {
             constraint_step: 8,
             free_space_step: 2,
             max_free_space_fraction: 0.05,
+            deform: DeformConfig::default(),
         }
     }
 }

@@ -3,6 +3,7 @@
 use crate::camera::{CameraPreset, Intrinsics};
 use crate::frame::{DepthSettings, FrameError};
 use crate::fusion::FusionConfig;
+use crate::loop_closure::LoopClosureConfig;
 use crate::preprocess::PreprocessConfig;
 use crate::track::TrackerConfig;
 use thiserror::Error;
@@ -23,6 +24,8 @@ pub struct SlamConfig {
     pub tracker: TrackerConfig,
     /// Fusion and prediction.
     pub fusion: FusionConfig,
+    /// Loop closure (the active model registered against the inactive one).
+    pub loop_closure: LoopClosureConfig,
 }
 
 impl SlamConfig {
@@ -36,6 +39,7 @@ impl SlamConfig {
             preprocess: PreprocessConfig::default(),
             tracker: TrackerConfig::default(),
             fusion: FusionConfig::default(),
+            loop_closure: LoopClosureConfig::default(),
         }
     }
 
