@@ -135,6 +135,12 @@ impl Pipeline {
         self.frame_index
     }
 
+    /// Loop closures (map and trajectory bent) since creation or the last reset.
+    #[must_use]
+    pub fn loop_closures(&self) -> u32 {
+        self.loop_closer.closures()
+    }
+
     /// Verdict counts since creation or the last reset.
     #[must_use]
     pub fn counts(&self) -> VerdictCounts {
