@@ -95,6 +95,7 @@ fn stage_medians(timings: &[StageTimings]) -> Vec<(&'static str, f64)> {
         ("preprocess", stage(|t| t.preprocess_ms)),
         ("track", stage(|t| t.track_ms)),
         ("fuse", stage(|t| t.fuse_ms)),
+        ("loop", stage(|t| t.loop_ms)),
         ("predict", stage(|t| t.predict_ms)),
         ("total", stage(|t| t.total_ms)),
     ]

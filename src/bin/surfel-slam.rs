@@ -463,12 +463,13 @@ fn run(args: &RunArgs) -> Result<u8> {
         }
     };
     println!(
-        "{}: {} frames, {} tracked, {} lost, {} recovered, {failed} unreadable, {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
+        "{}: {} frames, {} tracked, {} lost, {} recovered, {failed} unreadable, {} loop closures, {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
         args.dataset.display(),
         frames.len(),
         counts.tracked,
         counts.lost,
         counts.recovered,
+        slam.loop_closures(),
         slam.map().live_len(),
     );
     Ok(if failed > 0 { EXIT_FRAMES_SKIPPED } else { 0 })

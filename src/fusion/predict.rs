@@ -64,6 +64,14 @@ impl Prediction {
         self.valid = 0;
     }
 
+    /// The surfel shown at row-major pixel `pixel` by the last render, if
+    /// any (loop closure reads the times of the surfels it matched).
+    #[must_use]
+    pub fn surfel_at_pixel(&self, pixel: usize) -> Option<usize> {
+        let w = self.index.width.max(1);
+        self.index.surfel_at(pixel % w, pixel / w)
+    }
+
     /// Renders the surfels last updated at a frame in `seen` and selected
     /// by `include` into the view `world_from_camera` up to depth `far_m`:
     /// per pixel that `measured` holds, the most confident surfel lying at

@@ -11,7 +11,90 @@
 //!
 //! Poses are `world_from_camera` (metres); times are frame indices.
 
+pub mod closer;
 pub mod deformation;
 pub mod ferns;
 pub mod global;
+pub mod local;
 pub mod relocalise;
+
+pub use closer::{LoopCloser, LoopFrame, LoopOutcome};
+
+use crate::track::icp::IcpGates;
+use deformation::DeformConfig;
+
+/// Settings of loop closure (issue #21): when it runs and what it accepts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoopClosureConfig {
+    /// Run loop closure at all.
+    pub enabled: bool,
+    /// Try a local closure every this many fused frames (1 = every frame).
+    pub every_frames: u32,
+    /// Gauss-Newton iterations of the model-to-model ICP per source grid,
+    /// finest (every pixel) first; entry `l` uses every `2^l`-th pixel.
+    pub iterations: Vec<usize>,
+    /// Correspondence gates and robust weight of the registration.
+    pub gates: IcpGates,
+    /// Registration only when the two predictions share at least this
+    /// fraction of the image's pixels.
+    pub min_overlap_fraction: f64,
+    /// Accept only with at least this fraction of the image's pixels as
+    /// inlier correspondences ...
+    pub min_inlier_fraction: f64,
+    /// ... and at least this fraction of the overlap.
+    pub min_inlier_ratio: f64,
+    /// Accept only when the RMS point-to-plane residual is at most this, metres.
+    pub max_residual_m: f64,
+    /// Accept only when the scaled 6x6 system's eigenvalue ratio is at least this.
+    pub min_conditioning: f64,
+    /// A correction below both this translation (metres) ...
+    pub min_correction_m: f64,
+    /// ... and this rotation (degrees) means the models already coincide:
+    /// nothing is bent, the matched inactive surfels are reactivated.
+    pub min_correction_deg: f64,
+    /// Refuse corrections above this translation, metres (a larger drift
+    /// is the global closure's job) ...
+    pub max_correction_m: f64,
+    /// ... or this rotation, degrees.
+    pub max_correction_deg: f64,
+    /// Pixel step (in both directions) between the active points sampled as
+    /// deformation constraints, each with the inactive point at the same
+    /// pixel as a pin.
+    pub constraint_step: usize,
+    /// Pixel step of the free-space check.
+    pub free_space_step: usize,
+    /// Refuse when more than this fraction of one model's points, corrected,
+    /// lie in front of the other model's surface (margins of the tracker's
+    /// `VerifyConfig`).
+    pub max_free_space_fraction: f64,
+    /// The deformation graph that bends the map on a closure.
+    pub deform: DeformConfig,
+}
+
+impl Default for LoopClosureConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            every_frames: 1,
+            iterations: vec![2, 4, 6],
+            gates: IcpGates {
+                distance_gate_m: 0.10,
+                normal_gate_deg: 25.0,
+                huber_m: 0.01,
+            },
+            min_overlap_fraction: 0.1,
+            min_inlier_fraction: 0.05,
+            min_inlier_ratio: 0.5,
+            max_residual_m: 0.01,
+            min_conditioning: 2e-3,
+            min_correction_m: 0.005,
+            min_correction_deg: 0.5,
+            max_correction_m: 0.15,
+            max_correction_deg: 10.0,
+            constraint_step: 8,
+            free_space_step: 2,
+            max_free_space_fraction: 0.05,
+            deform: DeformConfig::default(),
+        }
+    }
+}

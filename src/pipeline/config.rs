@@ -4,6 +4,7 @@ use crate::camera::{CameraPreset, Intrinsics};
 use crate::frame::{DepthSettings, FrameError};
 use crate::fusion::FusionConfig;
 use crate::loop_closure::relocalise::RelocaliseConfig;
+use crate::loop_closure::LoopClosureConfig;
 use crate::preprocess::PreprocessConfig;
 use crate::track::TrackerConfig;
 use thiserror::Error;
@@ -26,6 +27,8 @@ pub struct SlamConfig {
     pub fusion: FusionConfig,
     /// Keyframe database and relocalisation of a lost camera.
     pub relocalise: RelocaliseConfig,
+    /// Loop closure (the active model registered against the inactive one).
+    pub loop_closure: LoopClosureConfig,
 }
 
 impl SlamConfig {
@@ -40,6 +43,7 @@ impl SlamConfig {
             tracker: TrackerConfig::default(),
             fusion: FusionConfig::default(),
             relocalise: RelocaliseConfig::default(),
+            loop_closure: LoopClosureConfig::default(),
         }
     }
 

@@ -6,7 +6,7 @@
 //!
 //! [`Pipeline::push_frame`] reads as the stage diagram of `ARCHITECTURE.md`:
 //! `preprocess` → `track` (`recovery.rs`: checks and re-acquisition) →
-//! `fuse` → (loop closure, to come) → `predict` → `count_verdict` → `report`.
+//! `fuse` → `close_loops` → `predict` → `count_verdict` → `report`.
 //! Each stage is a method here, or in the file named after it, that owns
 //! its buffers in [`Pipeline`]'s fields.
 
@@ -25,6 +25,7 @@ use crate::fusion::{
     remove_unstable, FusionStats, Integrator, Measured, Prediction, SpatialOrder, SurfelMap,
 };
 use crate::loop_closure::relocalise::Relocaliser;
+use crate::loop_closure::{LoopCloser, LoopFrame, LoopOutcome};
 use crate::preprocess::{half_resolution_into, FramePyramid};
 use crate::track::verify::TrackingChecks;
 use crate::track::{TrackerConfig, TrackerMode, TrackerWorkspace};
@@ -61,6 +62,8 @@ pub struct Pipeline {
     velocity: Option<DAffine3>,
     /// Keyframes of the fused frames, to place a lost camera.
     relocaliser: Relocaliser,
+    /// The loop-closure stage.
+    loop_closer: LoopCloser,
 }
 
 impl Pipeline {
@@ -83,6 +86,7 @@ impl Pipeline {
             velocity: None,
             relocaliser: Relocaliser::new(config.relocalise)
                 .map_err(|e| PipelineError::InvalidConfig(e.to_string()))?,
+            loop_closer: LoopCloser::new(config.loop_closure.clone()),
             config,
             map: SurfelMap::default(),
             prediction: Prediction::new(photometric),
@@ -136,6 +140,12 @@ impl Pipeline {
         self.frame_index
     }
 
+    /// Loop closures (map and trajectory bent) since creation or the last reset.
+    #[must_use]
+    pub fn loop_closures(&self) -> u32 {
+        self.loop_closer.closures()
+    }
+
     /// Verdict counts since creation or the last reset.
     #[must_use]
     pub fn counts(&self) -> VerdictCounts {
@@ -160,6 +170,7 @@ impl Pipeline {
         self.frame_index = 0;
         self.counts = VerdictCounts::default();
         self.prediction.clear();
+        self.loop_closer.reset();
         self.decoded_was_pushed = false;
     }
 
@@ -188,17 +199,18 @@ impl Pipeline {
         let t0 = now_ms();
         self.preprocess(frame);
         let t1 = now_ms();
-        let tracked = self.track();
+        let mut tracked = self.track();
         let t2 = now_ms();
         let mut fusion = FusionStats::default();
-        let mut t3 = t2;
+        let mut closure = LoopOutcome::default();
+        let (mut t3, mut t3b) = (t2, t2);
         if tracked.verdict.is_fused() {
             fusion = self.fuse(&tracked.pose, index);
             t3 = now_ms();
-            // The loop-closure stage goes here: after the frame is fused (the
-            // map holds what it saw) and before the prediction for the next
-            // frame is rendered (so that one shows the map as corrected).
-            // See ARCHITECTURE.md, "Adding a stage".
+            // After fusion (the map holds what this frame saw), before the
+            // prediction (so that it shows the map as corrected).
+            closure = self.close_loops(&mut tracked.pose, index);
+            t3b = now_ms();
             self.predict(&tracked.pose);
         }
         let t4 = now_ms();
@@ -210,10 +222,14 @@ impl Pipeline {
             preprocess_ms: t1 - t0,
             track_ms: t2 - t1,
             fuse_ms: t3 - t2,
-            predict_ms: t4 - t3,
+            loop_ms: t3b - t3,
+            predict_ms: t4 - t3b,
             total_ms: t4 - t0,
         };
-        Ok(self.report(index, timestamp, &tracked, fusion, timings))
+        let mut report = self.report(index, timestamp, &tracked, fusion, timings);
+        report.loop_closed = closure.closed;
+        report.loop_registration = closure.registration;
+        Ok(report)
     }
 
     /// Stage `preprocess`: halves the frame when asked, then builds the
@@ -283,6 +299,38 @@ impl Pipeline {
                 remove_unstable(&mut self.map, &self.config.fusion, index, &mut self.order);
         }
         fusion
+    }
+
+    /// Stage `close_loops` ([`LoopCloser`]): where the view overlaps the
+    /// inactive model, register the active model onto it; on a closure the
+    /// map, the trajectory and `pose` are bent, and so is the last good
+    /// pose (the constant-velocity motion is then measured between poses
+    /// corrected alike).
+    fn close_loops(&mut self, pose: &mut DAffine3, index: u32) -> LoopOutcome {
+        let k = self.config.working_intrinsics();
+        let frame = LoopFrame {
+            now: index,
+            intrinsics: &k,
+            measured: Measured {
+                vertices: self.pyramid.levels.first().map_or(&[], |l| &l.vertices),
+                tiles: self.integrator.depth_tiles(),
+            },
+            fusion: &self.config.fusion,
+            far_m: self.config.depth.max_m,
+            fused: self.counts.tracked + self.counts.recovered,
+            verify: &self.config.tracker.verify,
+        };
+        let outcome = self
+            .loop_closer
+            .run(&mut self.map, &mut self.trajectory, pose, &frame);
+        if outcome.closed {
+            // The trajectory's last entry is the last good pose, or (after
+            // lost frames) a copy of it held.
+            if let Some(&(_, last)) = self.trajectory.last() {
+                self.last_good = Some(last);
+            }
+        }
+        outcome
     }
 
     /// Stage `predict`: what the next frame is tracked against, all from the
@@ -367,6 +415,9 @@ impl Pipeline {
             fusion,
             counts: self.counts,
             checks: tracked.checks,
+            loop_closures: self.loop_closer.closures(),
+            loop_closed: false,
+            loop_registration: None,
             timings,
         }
     }

@@ -1,6 +1,7 @@
 //! What the pipeline says about each frame: verdict, counts, timings.
 
 use crate::fusion::FusionStats;
+use crate::loop_closure::local::Registration;
 use crate::track::verify::TrackingChecks;
 use crate::track::LostReason;
 use glam::DAffine3;
@@ -63,6 +64,9 @@ pub struct StageTimings {
     pub track_ms: f64,
     /// Fusion (index map, merge, add, cleanup).
     pub fuse_ms: f64,
+    /// Loop closure: the inactive model's prediction, and on a revisit the
+    /// registration, and on a closure the deformation of map and trajectory.
+    pub loop_ms: f64,
     /// Model prediction for the next frame.
     pub predict_ms: f64,
     /// Whole frame.
@@ -100,6 +104,15 @@ pub struct FrameReport {
     pub counts: VerdictCounts,
     /// What the independent checks of the tracking result said.
     pub checks: TrackingChecks,
+    /// Loop closures (the map and trajectory bent) of the run so far, this
+    /// frame included.
+    pub loop_closures: u32,
+    /// This frame closed a loop: every surfel and past pose may have moved
+    /// (the whole map is in the changed range).
+    pub loop_closed: bool,
+    /// The model-to-model registration this frame ran (when the view
+    /// overlapped the inactive model), accepted or not.
+    pub loop_registration: Option<Registration>,
     /// Stage timings.
     pub timings: StageTimings,
 }

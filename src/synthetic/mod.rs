@@ -26,6 +26,8 @@
 //! SplitMix64 stream seeded per row from `seed`, so a frame depends only on
 //! its arguments (not on the thread count).
 
+mod loop_path;
+mod map_error;
 mod noise;
 mod raycast;
 mod render;
@@ -33,6 +35,8 @@ mod scene;
 mod texture;
 mod trajectory;
 
+pub use loop_path::loop_pose;
+pub use map_error::{map_error, MapError};
 pub use noise::NoiseModel;
 pub use render::{render, render_into, RenderedFrame, SyntheticError, DEPTH_UNITS_PER_METRE};
 pub use scene::{Scene, SceneBox, ROOM_MAX, ROOM_MIN};

@@ -1,0 +1,392 @@
+//! Loop closure end to end on the synthetic loop (known truth) and the real sequences.
+
+mod common;
+
+use common::synthetic_config;
+use glam::DAffine3;
+use surfel_slam::eval::ate;
+use surfel_slam::fusion::{DepthTiles, Measured, Prediction, SurfelMap};
+use surfel_slam::loop_closure::local::{ModelRegistration, Rejection};
+use surfel_slam::loop_closure::LoopClosureConfig;
+use surfel_slam::preprocess::FramePyramid;
+use surfel_slam::se3::exp;
+use surfel_slam::se3::motion_magnitude;
+use surfel_slam::synthetic::{self, loop_pose, NoiseModel, Scene};
+use surfel_slam::track::verify::VerifyConfig;
+use surfel_slam::{FrameReport, Intrinsics, Pipeline, SlamConfig};
+
+struct LoopRun {
+    slam: Pipeline,
+    reports: Vec<FrameReport>,
+    truth: Vec<(f64, DAffine3)>,
+}
+
+/// Runs `frames` frames of the loop (`per_loop` frames a turn), rendered
+/// with `render_k` and `noise`, through a pipeline configured with `config`.
+fn run_loop(
+    config: &SlamConfig,
+    render_k: surfel_slam::Intrinsics,
+    per_loop: usize,
+    frames: usize,
+    noise: NoiseModel,
+) -> LoopRun {
+    let scene = Scene::room();
+    let mut slam = Pipeline::new(config.clone()).expect("config");
+    let origin_inv = loop_pose(0, per_loop).inverse();
+    let mut reports = Vec::new();
+    let mut truth = Vec::new();
+    for i in 0..frames {
+        let pose = loop_pose(i, per_loop);
+        let frame = synthetic::render(&scene, &render_k, &pose, &noise, i as u64)
+            .to_frame(&config.depth)
+            .expect("frame");
+        reports.push(slam.push_frame(&frame, i as f64).expect("push"));
+        truth.push((i as f64, origin_inv * pose));
+    }
+    LoopRun {
+        slam,
+        reports,
+        truth,
+    }
+}
+
+/// One synthetic view's points and normals at `k`, camera frame.
+fn view_points(k: &Intrinsics, pose: &DAffine3) -> (Vec<glam::Vec3>, Vec<glam::Vec3>) {
+    let config = synthetic_config(*k);
+    let frame = synthetic::render(&Scene::room(), k, pose, &NoiseModel::none(), 0)
+        .to_frame(&config.depth)
+        .expect("frame");
+    let mut pyramid = FramePyramid::new(k, &config.preprocess);
+    pyramid.build(&frame, &config.preprocess);
+    let level = &pyramid.levels[0];
+    (level.vertices.clone(), level.normals.clone())
+}
+
+/// Adds the surfels of the view `(points, normals)` placed by `world_from_camera`.
+fn add_view(
+    map: &mut SurfelMap,
+    view: &(Vec<glam::Vec3>, Vec<glam::Vec3>),
+    world_from_camera: &DAffine3,
+    frame: u32,
+) {
+    let t = world_from_camera.as_affine3a();
+    for (p, n) in view.0.iter().zip(&view.1) {
+        if p.z > 0.0 && *n != glam::Vec3::ZERO {
+            let n = t.transform_vector3(*n);
+            map.push(
+                t.transform_point3(*p),
+                n,
+                [128, 128, 128, 255],
+                0.004,
+                10.0,
+                frame,
+            );
+        }
+    }
+}
+
+/// Predictions of the surfels below `split` (inactive) and from `split` on
+/// (active), rendered from `believed` with the view `measured` taken there.
+fn predictions(
+    map: &SurfelMap,
+    split: usize,
+    k: &Intrinsics,
+    believed: &DAffine3,
+    measured: &[glam::Vec3],
+) -> (Prediction, Prediction) {
+    let mut tiles = DepthTiles::default();
+    tiles.build(measured, k.width);
+    let render = |include: &(dyn Fn(usize) -> bool + Sync)| {
+        let mut p = Prediction::new(false);
+        p.render(
+            map,
+            believed,
+            k,
+            (0.05, 8.0),
+            Measured {
+                vertices: measured,
+                tiles: &tiles,
+            },
+            0..u32::MAX,
+            include,
+        );
+        p
+    };
+    (render(&|i| i >= split), render(&|i| i < split))
+}
+
+#[test]
+fn model_to_model_registration_measures_a_known_drift() {
+    let k = synthetic::default_intrinsics().half();
+    let config = LoopClosureConfig::default();
+    let verify = VerifyConfig::default();
+    let (old_pose, new_pose) = (loop_pose(0, 240), loop_pose(6, 240));
+    let (old_view, new_view) = (view_points(&k, &old_pose), view_points(&k, &new_pose));
+    let mut registration = ModelRegistration::default();
+    // The new view mapped with drift: the pipeline believes the camera is
+    // at `drift * new_pose`, so its surfels lie `drift` away from the old ones.
+    for drift in [
+        exp(&[0.01, -0.015, 0.008, 0.03, -0.01, 0.02]),
+        exp(&[-0.02, 0.01, 0.0, -0.05, 0.03, 0.0]),
+        DAffine3::IDENTITY,
+    ] {
+        let mut map = SurfelMap::default();
+        add_view(&mut map, &old_view, &old_pose, 0);
+        let split = map.len();
+        let believed = drift * new_pose;
+        add_view(&mut map, &new_view, &believed, 100);
+        let (active, inactive) = predictions(&map, split, &k, &believed, &new_view.0);
+        let r = registration.register(&active, &inactive, &config, &verify);
+        assert!(r.accepted(), "{r:?}");
+        let (dt, dr) = motion_magnitude(&(r.correction * drift));
+        assert!(
+            dt < 0.002 && dr.to_degrees() < 0.1,
+            "{dt} m {} deg off: {r:?}",
+            dr.to_degrees()
+        );
+        println!(
+            "drift {:?}: overlap {}, inliers {}, rms {:.2} mm, conditioning {:.4}, free space {:.3}, error {:.2} mm {:.3} deg",
+            motion_magnitude(&drift),
+            r.overlap,
+            r.inliers,
+            r.residual_rms_m * 1000.0,
+            r.conditioning,
+            r.free_space,
+            dt * 1000.0,
+            dr.to_degrees()
+        );
+    }
+}
+
+#[test]
+fn model_to_model_registration_refuses_another_place() {
+    let k = synthetic::default_intrinsics().half();
+    let config = LoopClosureConfig::default();
+    let verify = VerifyConfig::default();
+    let here = loop_pose(0, 240);
+    let here_view = view_points(&k, &here);
+    let mut registration = ModelRegistration::default();
+    // Views of other parts of the room, spliced in as if seen from here: the
+    // inactive model shows surfaces of another place where the camera looks.
+    let mut checked = 0;
+    for other in [60, 100, 140, 180] {
+        let other_pose = loop_pose(other, 240);
+        let other_view = view_points(&k, &other_pose);
+        let mut map = SurfelMap::default();
+        add_view(&mut map, &other_view, &here, 0);
+        let split = map.len();
+        add_view(&mut map, &here_view, &here, 100);
+        let (active, inactive) = predictions(&map, split, &k, &here, &here_view.0);
+        let r = registration.register(&active, &inactive, &config, &verify);
+        println!("other place {other}: {:?} overlap {} inliers {} rms {:.2} mm free space {:.3} correction {:?}", r.rejected, r.overlap, r.inliers, r.residual_rms_m * 1000.0, r.free_space, r.magnitude());
+        assert!(
+            !r.accepted(),
+            "closure accepted against frame {other}: {r:?}"
+        );
+        checked += usize::from(r.rejected != Some(Rejection::TooLittleOverlap));
+    }
+    assert!(
+        checked > 0,
+        "every other place was refused for lack of overlap alone"
+    );
+}
+
+/// The synthetic loop with drift: the SLAM is given a focal length 0.5 %
+/// too long (a calibration error) and a short active window, so the map and
+/// path drift as the camera goes round (7.4 cm between frames 240 and 0,
+/// which show the same view); `window` frames of activity, `closure` on or off.
+fn drifting_loop(window: u32, closure: bool, frames: usize) -> (LoopRun, f64) {
+    let k = synthetic::default_intrinsics().half();
+    let mut config = synthetic_config(k);
+    config.intrinsics.fx *= 1.005;
+    config.intrinsics.fy *= 1.005;
+    config.fusion.active_window_frames = window;
+    config.loop_closure.enabled = closure;
+    let run = run_loop(&config, k, 240, frames, NoiseModel::none());
+    let a = ate(run.slam.trajectory(), &run.truth, 0.01).expect("ate");
+    (run, a.rmse_m)
+}
+
+fn map_error_of(run: &LoopRun) -> synthetic::MapError {
+    synthetic::map_error(
+        &Scene::room(),
+        run.slam.map().positions(),
+        &loop_pose(0, 240),
+    )
+}
+
+#[test]
+fn closing_the_synthetic_loop_halves_the_drift_and_merges_the_doubled_surfaces() {
+    let frames = 280;
+    let (open, open_ate) = drifting_loop(30, false, frames);
+    let (closed, closed_ate) = drifting_loop(30, true, frames);
+    let closures = closed.reports.last().map_or(0, |r| r.loop_closures);
+    let (open_map, closed_map) = (map_error_of(&open), map_error_of(&closed));
+    let end_error = |run: &LoopRun| {
+        let a = run.slam.trajectory()[240].1;
+        let b = run.slam.trajectory()[0].1;
+        motion_magnitude(&(b.inverse() * a)).0
+    };
+    println!(
+        "synthetic loop, window 30, fx +0.5 %: ATE {:.2} -> {:.2} cm; pose 240 vs 0 {:.2} -> {:.2} cm; \
+         map error rms {:.2} -> {:.2} cm, within 1 cm {:.1} -> {:.1} %; surfels {} -> {}; {closures} closures",
+        open_ate * 100.0,
+        closed_ate * 100.0,
+        end_error(&open) * 100.0,
+        end_error(&closed) * 100.0,
+        open_map.rms_m * 100.0,
+        closed_map.rms_m * 100.0,
+        open_map.within_1cm * 100.0,
+        closed_map.within_1cm * 100.0,
+        open.slam.map().live_len(),
+        closed.slam.map().live_len(),
+    );
+    for r in closed.reports.iter().filter(|r| r.loop_closed) {
+        println!(
+            "  closure at frame {}: {:.1} ms",
+            r.index, r.timings.loop_ms
+        );
+    }
+    assert_eq!(common::lost_count(&closed.reports), 0);
+    assert!(closures >= 1, "no closure");
+    assert!(
+        open_ate > 0.005,
+        "the open loop did not drift: {open_ate} m"
+    );
+    assert!(
+        closed_ate <= 0.5 * open_ate,
+        "ATE {closed_ate} m with closure vs {open_ate} m"
+    );
+    assert!(end_error(&closed) <= 0.6 * end_error(&open));
+    // The doubled surfaces coincide: more of the map lies on the true
+    // surfaces, and the duplicates were merged.
+    assert!(
+        closed_map.within_1cm > open_map.within_1cm,
+        "{closed_map:?} vs {open_map:?}"
+    );
+    assert!(closed_map.rms_m < open_map.rms_m);
+    assert!(closed.slam.map().live_len() < open.slam.map().live_len());
+    assert!(closed.slam.map().all_finite());
+}
+
+#[test]
+fn no_closure_without_a_revisit() {
+    // Three quarters of the loop: the camera turns steadily, so what it
+    // left behind (inactive after 30 frames) is never in view again.
+    let k = synthetic::default_intrinsics().half();
+    let mut config = synthetic_config(k);
+    config.fusion.active_window_frames = 30;
+    let run = run_loop(&config, k, 240, 180, NoiseModel::none());
+    let a = ate(run.slam.trajectory(), &run.truth, 0.01).expect("ate");
+    assert_eq!(common::lost_count(&run.reports), 0);
+    let accepted = run
+        .reports
+        .iter()
+        .filter(|r| r.loop_registration.is_some_and(|g| g.accepted()))
+        .count();
+    assert_eq!(accepted, 0);
+    assert_eq!(run.reports.last().map(|r| r.loop_closures), Some(0));
+    assert!(a.rmse_m < 0.01, "ATE {} m", a.rmse_m);
+}
+
+#[test]
+fn a_spliced_frame_of_another_place_closes_no_loop() {
+    // The loop, with frames of the far side of the room spliced in after
+    // the camera came back near its start (where inactive surfaces abound).
+    let k = synthetic::default_intrinsics().half();
+    let mut config = synthetic_config(k);
+    config.fusion.active_window_frames = 30;
+    let scene = Scene::room();
+    let mut slam = Pipeline::new(config.clone()).expect("config");
+    let origin_inv = loop_pose(0, 240).inverse();
+    let mut truth = Vec::new();
+    let mut spliced_closures = 0;
+    for i in 0..250 {
+        let spliced = (225..228).contains(&i);
+        let pose = if spliced {
+            loop_pose(i - 120, 240)
+        } else {
+            loop_pose(i, 240)
+        };
+        let frame = synthetic::render(&scene, &k, &pose, &NoiseModel::none(), i as u64)
+            .to_frame(&config.depth)
+            .expect("frame");
+        let r = slam.push_frame(&frame, i as f64).expect("push");
+        if spliced {
+            spliced_closures += u32::from(r.loop_closed);
+        } else {
+            truth.push((i as f64, origin_inv * pose));
+        }
+    }
+    assert_eq!(spliced_closures, 0);
+    let estimate: Vec<_> = slam
+        .trajectory()
+        .iter()
+        .filter(|(t, _)| !(225.0..228.0).contains(t))
+        .copied()
+        .collect();
+    let a = ate(&estimate, &truth, 0.01).expect("ate");
+    assert!(a.rmse_m < 0.005, "ATE {} m", a.rmse_m);
+}
+
+/// Frames `0..n` then `n-1..0` of a real sequence, stamped with the play
+/// position; ATE against the ground truth of the frame each position shows.
+fn back_and_forth(
+    dir: &std::path::Path,
+    closure: bool,
+    both_ways: bool,
+) -> Option<(f64, u32, usize)> {
+    use surfel_slam::dataset::{read_frame, Sequence};
+    let sequence = Sequence::open(dir).expect("sequence opens");
+    let mut config = SlamConfig::from_preset(sequence.preset);
+    config.loop_closure.enabled = closure;
+    let mut slam = Pipeline::new(config.clone()).expect("config");
+    let n = sequence.frames.len();
+    let order: Vec<usize> = if both_ways {
+        (0..n).chain((0..n).rev()).collect()
+    } else {
+        (0..n).collect()
+    };
+    let mut truth = Vec::new();
+    let mut last = None;
+    for (position, &j) in order.iter().enumerate() {
+        let entry = &sequence.frames[j];
+        let frame = read_frame(dir, entry, &config.depth).expect("frame decodes");
+        last = Some(slam.push_frame(&frame, position as f64).expect("accepted"));
+        if let Some(gt) = sequence.ground_truth_for(entry.timestamp, 0.02) {
+            truth.push((position as f64, gt));
+        }
+    }
+    let a = ate(slam.trajectory(), &truth, 0.01).expect("ate");
+    let r = last?;
+    Some((a.rmse_m, r.loop_closures, r.counts.lost as usize))
+}
+
+fn real_sequence_not_worse(name: &str) {
+    let Some(dir) = common::shared_dataset(name) else {
+        return;
+    };
+    for both_ways in [false, true] {
+        let (off, _, lost_off) = back_and_forth(&dir, false, both_ways).expect("frames");
+        let (on, closures, lost_on) = back_and_forth(&dir, true, both_ways).expect("frames");
+        println!(
+            "{name} {}: ATE {:.3} cm without loop closure, {:.3} cm with ({closures} closures), lost {lost_off} / {lost_on}",
+            if both_ways { "forward+backward" } else { "forward" },
+            off * 100.0,
+            on * 100.0
+        );
+        assert!(lost_on <= lost_off);
+        // Not worse, to the spread that reordered parallel sums give.
+        assert!(on <= off * 1.05 + 1e-4, "{on} m with closure vs {off} m");
+    }
+}
+
+#[test]
+fn teddy_is_not_worse_with_loop_closure() {
+    real_sequence_not_worse("tum_fr3_teddy");
+}
+
+#[test]
+fn icl_is_not_worse_with_loop_closure() {
+    real_sequence_not_worse("icl_office_kt0");
+}
