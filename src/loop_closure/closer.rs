@@ -164,8 +164,7 @@ impl LoopCloser {
             return outcome;
         }
         self.collect_matches(map, &registration);
-        let (dt, dr) = registration.magnitude();
-        if dt >= self.config.min_correction_m || dr >= self.config.min_correction_deg {
+        if registration.moves_map(&self.config) {
             match self.bend(map, trajectory, pose, now) {
                 Ok(report) => {
                     outcome.closed = true;

@@ -71,6 +71,10 @@ pub struct Registration {
     pub inlier_ratio: f64,
     /// RMS point-to-plane residual of the inliers, metres.
     pub residual_rms_m: f64,
+    /// The same residual before the registration (the models as they lie),
+    /// metres: a correction that barely lowers it is not measured by the
+    /// overlap (it slides along a weakly constrained direction).
+    pub start_residual_rms_m: f64,
     /// Eigenvalue ratio of the scaled 6x6 system (0 = singular).
     pub conditioning: f64,
     /// Free-space violation fraction, the larger of the two directions
@@ -88,6 +92,7 @@ impl Registration {
             inliers: 0,
             inlier_ratio: 0.0,
             residual_rms_m: 0.0,
+            start_residual_rms_m: 0.0,
             conditioning: 0.0,
             free_space: 0.0,
             rejected: Some(reason),
@@ -98,6 +103,17 @@ impl Registration {
     #[must_use]
     pub fn accepted(&self) -> bool {
         self.rejected.is_none()
+    }
+
+    /// True when the correction is worth bending the map for: above the
+    /// smallest correction `config` bends for, and lowering the residual
+    /// by at least `config.min_residual_gain`. Otherwise the two models
+    /// already coincide as far as the overlap can tell.
+    #[must_use]
+    pub fn moves_map(&self, config: &LoopClosureConfig) -> bool {
+        let (dt, dr) = self.magnitude();
+        let large = dt >= config.min_correction_m || dr >= config.min_correction_deg;
+        large && self.start_residual_rms_m >= self.residual_rms_m * config.min_residual_gain
     }
 
     /// Translation (metres) and rotation (degrees) of the correction.
@@ -180,6 +196,14 @@ impl ModelRegistration {
         let view = inactive.world_from_camera;
         to_camera_frame(inactive, &mut self.target);
         let mut camera_from_world = view.inverse();
+        let start = icp_step(
+            active,
+            1,
+            &self.target,
+            &RigidF32::from_affine(&camera_from_world),
+            &config.gates,
+        );
+        let start_residual_rms_m = (start.system.cost / start.system.count.max(1) as f64).sqrt();
         // Coarse to fine on the source grid: the target stays full resolution.
         for (level, &iterations) in config.iterations.iter().enumerate().rev() {
             let stride = 1usize << level;
@@ -212,6 +236,7 @@ impl ModelRegistration {
             inliers,
             inlier_ratio: (inliers as f64 / overlap as f64).min(1.0),
             residual_rms_m: (system.cost / inliers.max(1) as f64).sqrt(),
+            start_residual_rms_m,
             conditioning: if inliers >= 6 {
                 system.conditioning()
             } else {

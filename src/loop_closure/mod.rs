@@ -52,6 +52,10 @@ pub struct LoopClosureConfig {
     /// ... and this rotation (degrees) means the models already coincide:
     /// nothing is bent, the matched inactive surfels are reactivated.
     pub min_correction_deg: f64,
+    /// Bend only when the correction divides the residual of the models as
+    /// they lie by at least this: a noise-free overlap with one weakly
+    /// constrained direction lets ICP slide centimetres without lowering it.
+    pub min_residual_gain: f64,
     /// Refuse corrections above this translation, metres (a larger drift
     /// is the global closure's job) ...
     pub max_correction_m: f64,
@@ -89,6 +93,7 @@ impl Default for LoopClosureConfig {
             min_conditioning: 2e-3,
             min_correction_m: 0.005,
             min_correction_deg: 0.5,
+            min_residual_gain: 1.25,
             max_correction_m: 0.15,
             max_correction_deg: 10.0,
             constraint_step: 8,
