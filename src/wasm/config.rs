@@ -44,6 +44,12 @@ export interface SlamConfig {
   tracker?: 'icp' | 'rgb' | 'joint';
   /** Joint mode: relative weight of the ICP term (each term normalised by its own residual variance). */
   icpWeight?: number;
+  /** Frames a surfel stays active (tracked against, fused into) after it was last seen; older ones are the inactive model loop closure registers against. */
+  activeWindowFrames?: number;
+  /** Local loop closure: bend the map and trajectory when the active model meets the inactive one. */
+  loopClosure?: boolean;
+  /** Relocalise a lost camera from the fern keyframes. */
+  relocalise?: boolean;
 }
 "#;
 
@@ -136,6 +142,17 @@ pub const CONFIG_KEYS: &[ConfigKey] = &[
         "maxSurfels",
         Setter::Integer(1e9, |c, v| c.fusion.max_surfels = v),
     ),
+    key(
+        "activeWindowFrames",
+        Setter::Integer(1e9, |c, v| {
+            c.fusion.active_window_frames = u32::try_from(v).unwrap_or(u32::MAX)
+        }),
+    ),
+    key(
+        "loopClosure",
+        Setter::Bool(|c, v| c.loop_closure.enabled = v),
+    ),
+    key("relocalise", Setter::Bool(|c, v| c.relocalise.enabled = v)),
 ];
 
 const fn key(name: &'static str, set: Setter) -> ConfigKey {

@@ -49,8 +49,12 @@ export interface FrameReport {
   counts: { tracked: number; lost: number; recovered: number; lostStreak: number };
   /** Lost and then placed by relocalisation: the frame index of the keyframe it was placed by; else null. */
   relocalisedFrom: number | null;
+  /** Loop closures of the run so far (map and trajectory bent), this frame included. */
+  loopClosures: number;
+  /** This frame closed a loop: every surfel and past pose may have moved (take the whole changed range and the trajectory again). */
+  loopClosed: boolean;
   /** Milliseconds per stage. */
-  timings: { decode: number; preprocess: number; track: number; fuse: number; predict: number; total: number };
+  timings: { decode: number; preprocess: number; track: number; fuse: number; loop: number; predict: number; total: number };
 }
 
 export interface Layout {
@@ -164,6 +168,7 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
         ("preprocess", tm.preprocess_ms.into()),
         ("track", tm.track_ms.into()),
         ("fuse", tm.fuse_ms.into()),
+        ("loop", tm.loop_ms.into()),
         ("predict", tm.predict_ms.into()),
         ("total", tm.total_ms.into()),
     ]);
@@ -203,6 +208,8 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
                 .relocalised_from
                 .map_or(JsValue::NULL, |frame| frame.into()),
         ),
+        ("loopClosures", r.loop_closures.into()),
+        ("loopClosed", r.loop_closed.into()),
         ("timings", timings.into()),
     ])
     .into()
