@@ -277,6 +277,21 @@ impl CameraPreset {
         Intrinsics::new(fx, fy, cx, cy, 640, 480)
     }
 
+    /// Depth noise of this camera: Kinect v1 (Nguyen et al. 2012) for the
+    /// TUM and 7-Scenes sensors (fr3's Asus Xtion has the same PrimeSense
+    /// structured-light unit), only the 16-bit quantisation for ICL-NUIM's
+    /// rendered depth.
+    #[must_use]
+    pub fn sensor_noise(self) -> crate::noise::SensorNoise {
+        use crate::noise::SensorNoise;
+        match self {
+            Self::TumFr1 | Self::TumFr2 | Self::TumFr3 | Self::SevenScenes => {
+                SensorNoise::kinect_v1()
+            }
+            Self::IclNuim => SensorNoise::rendered(),
+        }
+    }
+
     /// Depth conversion for this camera: units per metre, valid range (m), invalid raw value.
     #[must_use]
     pub fn depth_settings(self) -> crate::frame::DepthSettings {

@@ -12,6 +12,7 @@ use crate::fusion::{
     remove_unstable, FusionConfig, FusionStats, Integrator, Measured, Prediction, SpatialOrder,
     SurfelMap,
 };
+use crate::noise::SensorNoise;
 use crate::preprocess::{half_resolution_into, FramePyramid, PreprocessConfig};
 use crate::se3;
 use crate::track::verify::{free_space_violation, TrackingChecks};
@@ -46,9 +47,22 @@ impl SlamConfig {
             half_resolution: false,
             depth: preset.depth_settings(),
             preprocess: PreprocessConfig::default(),
-            tracker: TrackerConfig::default(),
-            fusion: FusionConfig::default(),
+            tracker: TrackerConfig {
+                noise: preset.sensor_noise(),
+                ..TrackerConfig::default()
+            },
+            fusion: FusionConfig {
+                noise: preset.sensor_noise(),
+                ..FusionConfig::default()
+            },
         }
+    }
+
+    /// Sets the sensor's depth noise model, which weights both tracking and
+    /// fusion ([`SensorNoise::uniform`] turns the weighting off).
+    pub fn set_noise(&mut self, noise: SensorNoise) {
+        self.tracker.noise = noise;
+        self.fusion.noise = noise;
     }
 
     /// Intrinsics of the images tracked and fused (halved with `half_resolution`).
@@ -88,6 +102,11 @@ impl SlamConfig {
             return Err(intrinsics_error(problem));
         }
         self.depth.validate()?;
+        for noise in [&self.tracker.noise, &self.fusion.noise] {
+            if let Some(problem) = noise.problem() {
+                return Err(PipelineError::InvalidConfig(problem));
+            }
+        }
         if self.tracker.iterations.len() < levels {
             return Err(PipelineError::InvalidConfig(format!(
                 "tracker needs iterations for {levels} levels, got {:?}",

@@ -1,6 +1,7 @@
 //! Settings of the fusion stage and the predicates they define.
 
 use super::SurfelMap;
+use crate::noise::SensorNoise;
 
 /// Settings of the fusion stage.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -31,6 +32,14 @@ pub struct FusionConfig {
     pub warmup_frames: u32,
     /// Cap on a surfel's radius, metres.
     pub max_radius_m: f32,
+    /// Depth noise of the sensor: a measurement's confidence gain and merge
+    /// weight are its inverse variance relative to the model's reference
+    /// (see `integrate.rs`, `noise_weights_into`). Uniform = no weighting.
+    pub noise: SensorNoise,
+    /// Smallest noise weight of a measurement, so that surfaces seen only
+    /// from far still become stable (a surfel unstable for
+    /// `unstable_max_age` frames is removed).
+    pub min_noise_weight: f32,
     /// Surfel budget. When the map holds this many, the pipeline first
     /// evicts stale unstable surfels, then new surfels are skipped (counted
     /// in `FusionStats::skipped`) while merges go on. 40 bytes per surfel.
@@ -49,6 +58,8 @@ impl Default for FusionConfig {
             cleanup_interval_frames: 10,
             warmup_frames: 10,
             max_radius_m: 0.05,
+            noise: SensorNoise::default(),
+            min_noise_weight: 0.2,
             max_surfels: 4_000_000,
         }
     }

@@ -33,7 +33,7 @@ mod scene;
 mod texture;
 mod trajectory;
 
-pub use noise::NoiseModel;
+pub use noise::{NoiseModel, StructuredLight};
 pub use render::{render, render_into, RenderedFrame, SyntheticError, DEPTH_UNITS_PER_METRE};
 pub use scene::{Scene, SceneBox, ROOM_MAX, ROOM_MIN};
 pub use trajectory::{default_intrinsics, look_at, trajectory, trajectory_pose};
