@@ -5,9 +5,9 @@
 
 use std::time::Instant;
 use surfel_slam::dataset::{read_frame, Sequence};
-use surfel_slam::fusion::index_map::RigidF32;
 use surfel_slam::fusion::{DepthTiles, Measured, Prediction};
 use surfel_slam::preprocess::FramePyramid;
+use surfel_slam::se3::RigidF32;
 use surfel_slam::track::icp::icp_step;
 use surfel_slam::track::rgb::RgbWorkspace;
 use surfel_slam::{Pipeline, SlamConfig};

@@ -5,6 +5,7 @@
 //! `fy` may be negative (ICL-NUIM's convention); every formula here uses it
 //! as given, and `focal_abs` is provided where a length in pixels is needed.
 
+use crate::se3::RigidF32;
 use glam::{Vec2, Vec3};
 
 /// Pinhole intrinsics of one image, in pixels, with the image size.
@@ -163,9 +164,47 @@ impl Intrinsics {
     }
 }
 
+/// Depth (metres) and pixel index of a camera-frame point, or `None` when it
+/// is behind the camera or outside the image.
+#[inline]
+#[must_use]
+pub fn pixel_of(k: &Intrinsics, p: Vec3) -> Option<(f32, usize)> {
+    if p.z <= 0.0 {
+        return None;
+    }
+    k.pixel_index(k.project(p)).map(|i| (p.z, i))
+}
+
+/// Writes into `out[i]` the pixel index that `positions[i]` (world frame,
+/// metres) projects to from `camera_from_world`, or `u32::MAX` when it lies
+/// behind the camera or outside the image; the same pixel as [`pixel_of`].
+/// Free of branches, so that the loop vectorises: it is the per-surfel
+/// part of association that every visible surfel pays.
+pub fn project_to_pixels(
+    k: &Intrinsics,
+    camera_from_world: &RigidF32,
+    positions: &[Vec3],
+    out: &mut [u32],
+) {
+    let (w, h) = (k.width as f32, k.height as f32);
+    let width = k.width as u32;
+    for (p, o) in positions.iter().zip(out.iter_mut()) {
+        let q = camera_from_world.point(*p);
+        let inv_z = 1.0 / q.z;
+        // The arithmetic of `Intrinsics::project` and `pixel_index`, in the same order.
+        let u = k.fx * q.x * inv_z + k.cx + 0.5;
+        let v = k.fy * q.y * inv_z + k.cy + 0.5;
+        let inside = q.z > 0.0 && u >= 0.0 && v >= 0.0 && u < w && v < h;
+        // Truncation is floor for the non-negative values kept; others are discarded.
+        let pixel = (v as u32).wrapping_mul(width).wrapping_add(u as u32);
+        *o = if inside { pixel } else { u32::MAX };
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::{DAffine3, DQuat, DVec3};
 
     #[test]
     fn project_inverts_back_project() {
@@ -216,6 +255,35 @@ mod tests {
         let q = h.project(p);
         assert!(q.x.abs() < 1e-5 && q.y.abs() < 1e-5);
         assert_eq!((h.width, h.height), (320, 240));
+    }
+
+    #[test]
+    fn batch_projection_gives_the_pixels_of_pixel_of() {
+        for fy in [525.0, -525.0] {
+            let k = Intrinsics::new(525.0, fy, 319.5, 239.5, 640, 480);
+            let pose = DAffine3::from_rotation_translation(
+                DQuat::from_euler(glam::EulerRot::XYZ, 0.1, -0.3, 0.05),
+                DVec3::new(0.2, -0.1, 0.4),
+            );
+            let camera_from_world = RigidF32::from_affine(&pose.inverse());
+            // A grid through the view, behind the camera and beyond the image edges.
+            let mut positions: Vec<Vec3> = (0..4000)
+                .map(|i| {
+                    let (x, y, z) = ((i % 20) as f32, ((i / 20) % 20) as f32, (i / 400) as f32);
+                    Vec3::new(x * 0.2 - 2.0, y * 0.15 - 1.5, z * 0.5 - 1.5)
+                })
+                .collect();
+            positions.push(Vec3::NAN);
+            let mut pixels = vec![0; positions.len()];
+            project_to_pixels(&k, &camera_from_world, &positions, &mut pixels);
+            let mut inside = 0;
+            for (p, &pixel) in positions.iter().zip(&pixels) {
+                let expected = pixel_of(&k, camera_from_world.point(*p)).map(|(_, i)| i as u32);
+                assert_eq!(expected.unwrap_or(u32::MAX), pixel, "at {p}");
+                inside += usize::from(expected.is_some());
+            }
+            assert!(inside > 500 && inside < 3000, "{inside} inside the image");
+        }
     }
 }
 

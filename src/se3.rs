@@ -10,7 +10,7 @@
 // Index loops mirror the matrix formulas (row, col, k) and read better than iterator chains here.
 #![allow(clippy::needless_range_loop)]
 
-use glam::{DAffine3, DMat3, DQuat, DVec3};
+use glam::{DAffine3, DMat3, DQuat, DVec3, Mat3, Vec3};
 
 /// A 6-vector twist: rotation (rad) then translation (m).
 pub type Twist = [f64; 6];
@@ -83,6 +83,59 @@ pub fn motion_magnitude(pose: &DAffine3) -> (f64, f64) {
     let q = DQuat::from_mat3(&pose.matrix3).normalize();
     let angle = 2.0 * q.w.abs().min(1.0).acos();
     (pose.translation.length(), angle)
+}
+
+/// Unit quaternion `[x, y, z, w]` (`w >= 0`) of the rotation part of a
+/// pose: the one the TUM trajectory files and the JS report both give.
+/// The matrix is re-orthonormalised first (Gram-Schmidt), so a rotation
+/// that drifted from orthonormal still gives a meaningful quaternion.
+#[must_use]
+pub fn unit_quaternion(pose: &DAffine3) -> [f64; 4] {
+    let m: DMat3 = pose.matrix3;
+    let x = m.x_axis.normalize_or(DVec3::X);
+    let y = (m.y_axis - x * x.dot(m.y_axis)).normalize_or(DVec3::Y);
+    let z = x.cross(y);
+    let q = DQuat::from_mat3(&DMat3::from_cols(x, y, z)).normalize();
+    let q = if q.w < 0.0 { -q } else { q };
+    [q.x, q.y, q.z, q.w]
+}
+
+/// A rigid transform in f32 for per-point loops (`rotation * p + translation`).
+#[derive(Debug, Clone, Copy)]
+pub struct RigidF32 {
+    /// Rotation.
+    pub rotation: Mat3,
+    /// Translation, metres.
+    pub translation: Vec3,
+}
+
+impl RigidF32 {
+    /// Converts an f64 pose to f32.
+    #[must_use]
+    pub fn from_affine(pose: &DAffine3) -> Self {
+        Self {
+            rotation: Mat3::from_cols(
+                pose.matrix3.x_axis.as_vec3(),
+                pose.matrix3.y_axis.as_vec3(),
+                pose.matrix3.z_axis.as_vec3(),
+            ),
+            translation: pose.translation.as_vec3(),
+        }
+    }
+
+    /// Transforms a point.
+    #[inline]
+    #[must_use]
+    pub fn point(&self, p: Vec3) -> Vec3 {
+        self.rotation * p + self.translation
+    }
+
+    /// Rotates a direction.
+    #[inline]
+    #[must_use]
+    pub fn vector(&self, v: Vec3) -> Vec3 {
+        self.rotation * v
+    }
 }
 
 /// Residuals buffered per lane before they are summed: eight, so that the

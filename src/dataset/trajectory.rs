@@ -3,25 +3,10 @@
 //! metres, timestamp in seconds (or frame number for ICL-NUIM), unit
 //! quaternion. `#` comments and blank lines are allowed.
 
-use glam::{DAffine3, DMat3, DQuat, DVec3};
+use glam::{DAffine3, DQuat, DVec3};
 
 use super::DatasetError;
-
-/// Unit quaternion of the rotation part of a pose, with `w >= 0`.
-fn rotation_quaternion(pose: &DAffine3) -> DQuat {
-    let m: DMat3 = pose.matrix3;
-    // Re-orthonormalise lightly (Gram-Schmidt) so a drifting matrix still
-    // gives a meaningful quaternion.
-    let x = m.x_axis.normalize_or(DVec3::X);
-    let y = (m.y_axis - x * x.dot(m.y_axis)).normalize_or(DVec3::Y);
-    let z = x.cross(y);
-    let q = DQuat::from_mat3(&DMat3::from_cols(x, y, z)).normalize();
-    if q.w < 0.0 {
-        -q
-    } else {
-        q
-    }
-}
+use crate::se3::unit_quaternion;
 
 /// Formats poses (`timestamp`, `world_from_camera`) as a TUM trajectory:
 /// timestamp with 6 decimals, translation (m) and unit quaternion with 9.
@@ -31,10 +16,10 @@ pub fn format_tum(poses: &[(f64, DAffine3)]) -> String {
     out.push_str("# timestamp tx ty tz qx qy qz qw\n");
     for (t, pose) in poses {
         let p = pose.translation;
-        let q = rotation_quaternion(pose);
+        let [qx, qy, qz, qw] = unit_quaternion(pose);
         out.push_str(&format!(
-            "{t:.6} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}\n",
-            p.x, p.y, p.z, q.x, q.y, q.z, q.w
+            "{t:.6} {:.9} {:.9} {:.9} {qx:.9} {qy:.9} {qz:.9} {qw:.9}\n",
+            p.x, p.y, p.z
         ));
     }
     out
@@ -117,7 +102,7 @@ mod tests {
     #[test]
     fn normalises_and_rejects() {
         let poses = parse_tum("# c\n\n5 1 2 3 0 0 0 2\n", "g.txt").expect("parses");
-        assert!(poses[0].1.matrix3.abs_diff_eq(DMat3::IDENTITY, 1e-12));
+        assert!(poses[0].1.matrix3.abs_diff_eq(glam::DMat3::IDENTITY, 1e-12));
         for (text, line_number) in [
             ("1 0 0 0 0 0 0 1\n2 0 0 0 0 0 0 0\n", 2),
             ("# x\n1 0 0 0 0 0 0\n", 2),

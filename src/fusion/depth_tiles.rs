@@ -11,7 +11,7 @@
 //! fr3/teddy).
 
 use crate::camera::Intrinsics;
-use crate::fusion::index_map::RigidF32;
+use crate::se3::RigidF32;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 

@@ -2,8 +2,8 @@
 //! map's block boxes.
 
 use crate::camera::Intrinsics;
-use crate::fusion::index_map::RigidF32;
 use crate::fusion::SurfelMap;
+use crate::se3::RigidF32;
 use glam::Vec3;
 use std::ops::Range;
 

@@ -12,87 +12,13 @@
 //! (confidence is not correlated with that noise). Measurements:
 //! `docs/performance.md#index-map`.
 
-use crate::camera::Intrinsics;
+use crate::camera::{pixel_of, Intrinsics};
 use crate::fusion::SurfelMap;
-use glam::{Mat3, Vec3};
+use crate::se3::RigidF32;
+use glam::Vec3;
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
-
-/// A rigid transform in f32 for per-point loops (`rotation * p + translation`).
-#[derive(Debug, Clone, Copy)]
-pub struct RigidF32 {
-    /// Rotation.
-    pub rotation: Mat3,
-    /// Translation, metres.
-    pub translation: Vec3,
-}
-
-impl RigidF32 {
-    /// Converts an f64 pose to f32.
-    #[must_use]
-    pub fn from_affine(pose: &glam::DAffine3) -> Self {
-        Self {
-            rotation: Mat3::from_cols(
-                pose.matrix3.x_axis.as_vec3(),
-                pose.matrix3.y_axis.as_vec3(),
-                pose.matrix3.z_axis.as_vec3(),
-            ),
-            translation: pose.translation.as_vec3(),
-        }
-    }
-
-    /// Transforms a point.
-    #[inline]
-    #[must_use]
-    pub fn point(&self, p: Vec3) -> Vec3 {
-        self.rotation * p + self.translation
-    }
-
-    /// Rotates a direction.
-    #[inline]
-    #[must_use]
-    pub fn vector(&self, v: Vec3) -> Vec3 {
-        self.rotation * v
-    }
-}
-
-/// Depth (metres) and pixel index of a camera-frame point, or `None` when it
-/// is behind the camera or outside the image.
-#[inline]
-#[must_use]
-pub fn pixel_of(k: &Intrinsics, p: Vec3) -> Option<(f32, usize)> {
-    if p.z <= 0.0 {
-        return None;
-    }
-    k.pixel_index(k.project(p)).map(|i| (p.z, i))
-}
-
-/// Writes into `out[i]` the pixel index that `positions[i]` (world frame,
-/// metres) projects to from `camera_from_world`, or `u32::MAX` when it lies
-/// behind the camera or outside the image; the same pixel as [`pixel_of`].
-/// Free of branches, so that the loop vectorises: it is the per-surfel
-/// part of association that every visible surfel pays.
-pub fn project_to_pixels(
-    k: &Intrinsics,
-    camera_from_world: &RigidF32,
-    positions: &[Vec3],
-    out: &mut [u32],
-) {
-    let (w, h) = (k.width as f32, k.height as f32);
-    let width = k.width as u32;
-    for (p, o) in positions.iter().zip(out.iter_mut()) {
-        let q = camera_from_world.point(*p);
-        let inv_z = 1.0 / q.z;
-        // The arithmetic of `Intrinsics::project` and `pixel_index`, in the same order.
-        let u = k.fx * q.x * inv_z + k.cx + 0.5;
-        let v = k.fy * q.y * inv_z + k.cy + 0.5;
-        let inside = q.z > 0.0 && u >= 0.0 && v >= 0.0 && u < w && v < h;
-        // Truncation is floor for the non-negative values kept; others are discarded.
-        let pixel = (v as u32).wrapping_mul(width).wrapping_add(u as u32);
-        *o = if inside { pixel } else { u32::MAX };
-    }
-}
 
 /// Calls `f(i)` in parallel for every surfel index in `ranges` (blocks of the map).
 pub fn for_each_in(ranges: &[Range<usize>], f: impl Fn(usize) + Sync + Send) {
@@ -170,7 +96,6 @@ impl IndexMap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::{DAffine3, DQuat, DVec3};
 
     #[test]
     fn each_measured_pixel_shows_its_most_confident_surfel_not_hidden_by_the_measurement() {
@@ -223,34 +148,5 @@ mod tests {
         // Excluded surfels are not shown.
         index.render(&map, &all, &t, &k, &measured, 0.05, |i| i != 1);
         assert_eq!(index.surfel_at(3, 3), Some(0));
-    }
-
-    #[test]
-    fn batch_projection_gives_the_pixels_of_pixel_of() {
-        for fy in [525.0, -525.0] {
-            let k = Intrinsics::new(525.0, fy, 319.5, 239.5, 640, 480);
-            let pose = DAffine3::from_rotation_translation(
-                DQuat::from_euler(glam::EulerRot::XYZ, 0.1, -0.3, 0.05),
-                DVec3::new(0.2, -0.1, 0.4),
-            );
-            let camera_from_world = RigidF32::from_affine(&pose.inverse());
-            // A grid through the view, behind the camera and beyond the image edges.
-            let mut positions: Vec<Vec3> = (0..4000)
-                .map(|i| {
-                    let (x, y, z) = ((i % 20) as f32, ((i / 20) % 20) as f32, (i / 400) as f32);
-                    Vec3::new(x * 0.2 - 2.0, y * 0.15 - 1.5, z * 0.5 - 1.5)
-                })
-                .collect();
-            positions.push(Vec3::NAN);
-            let mut pixels = vec![0; positions.len()];
-            project_to_pixels(&k, &camera_from_world, &positions, &mut pixels);
-            let mut inside = 0;
-            for (p, &pixel) in positions.iter().zip(&pixels) {
-                let expected = pixel_of(&k, camera_from_world.point(*p)).map(|(_, i)| i as u32);
-                assert_eq!(expected.unwrap_or(u32::MAX), pixel, "at {p}");
-                inside += usize::from(expected.is_some());
-            }
-            assert!(inside > 500 && inside < 3000, "{inside} inside the image");
-        }
     }
 }

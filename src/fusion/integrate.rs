@@ -14,11 +14,12 @@
 use super::chunk_bounds::{ChunkBounds, BLOCK, BLOCKS_PER_CHUNK, CHUNK};
 use super::depth_tiles::DepthTiles;
 use super::frustum::visible_blocks;
-use super::index_map::{project_to_pixels, RigidF32};
 use super::surfel_map::{ChunkMut, Surfel};
 use super::{FusionConfig, SurfelMap};
+use crate::camera::project_to_pixels;
 use crate::camera::Intrinsics;
 use crate::preprocess::{FramePyramid, PyramidLevel};
+use crate::se3::RigidF32;
 use glam::{DAffine3, Vec3};
 use rayon::prelude::*;
 use std::ops::Range;

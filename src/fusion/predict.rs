@@ -4,8 +4,9 @@
 
 use crate::camera::Intrinsics;
 use crate::fusion::frustum::visible_blocks;
-use crate::fusion::index_map::{IndexMap, RigidF32};
+use crate::fusion::index_map::IndexMap;
 use crate::fusion::{DepthTiles, SurfelMap};
+use crate::se3::RigidF32;
 use glam::{DAffine3, Vec3};
 use rayon::prelude::*;
 

@@ -23,10 +23,10 @@
 //! minimise the same cost as the fine one, on fewer points). A uniform
 //! model gives `s = 1`: the unweighted tracker.
 
-use crate::fusion::index_map::RigidF32;
 use crate::fusion::Prediction;
 use crate::noise::SensorNoise;
 use crate::preprocess::PyramidLevel;
+use crate::se3::RigidF32;
 use crate::se3::{NormalEquations, RowAccumulator};
 use glam::Vec3;
 use rayon::prelude::*;

@@ -17,11 +17,11 @@ pub mod icp;
 pub mod rgb;
 pub mod verify;
 
-use crate::fusion::index_map::RigidF32;
 use crate::fusion::Prediction;
 use crate::noise::SensorNoise;
 use crate::preprocess::FramePyramid;
 use crate::se3;
+use crate::se3::RigidF32;
 use glam::DAffine3;
 use icp::{icp_step, IcpGates, NoiseWeights};
 use rgb::{PhotometricConfig, RgbWorkspace};

@@ -51,10 +51,10 @@
 //! `max_depth_delta_m` (occlusion, or a surfel not yet seen from here), and
 //! each residual gets a Huber weight.
 
-use crate::fusion::index_map::RigidF32;
 use crate::fusion::Prediction;
 use crate::preprocess::{FramePyramid, PyramidLevel};
 use crate::se3::NormalEquations;
+use crate::se3::RigidF32;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 

@@ -4,7 +4,7 @@
 //! Everything coming from JS is checked here and turned into an error message
 //! that names the field; nothing in this file panics on any JS input.
 
-use glam::{DAffine3, DMat4, DQuat};
+use glam::{DAffine3, DMat4};
 use js_sys::{Array, Float64Array, Object, Reflect};
 use wasm_bindgen::prelude::*;
 
@@ -426,9 +426,7 @@ pub fn preset_to_js(preset: CameraPreset) -> JsValue {
 /// Unit quaternion `[x, y, z, w]` (w >= 0) of a pose's rotation.
 #[must_use]
 pub fn quaternion(pose: &DAffine3) -> [f64; 4] {
-    let q = DQuat::from_mat3(&pose.matrix3).normalize();
-    let q = if q.w < 0.0 { -q } else { q };
-    [q.x, q.y, q.z, q.w]
+    crate::se3::unit_quaternion(pose)
 }
 
 fn numbers(values: &[f64]) -> Array {

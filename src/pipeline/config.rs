@@ -1,0 +1,111 @@
+//! The pipeline's configuration and its errors.
+
+use crate::camera::{CameraPreset, Intrinsics};
+use crate::frame::{DepthSettings, FrameError};
+use crate::fusion::FusionConfig;
+use crate::preprocess::PreprocessConfig;
+use crate::track::TrackerConfig;
+use thiserror::Error;
+
+/// Everything the pipeline needs to know.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SlamConfig {
+    /// Camera intrinsics at the input resolution.
+    pub intrinsics: Intrinsics,
+    /// Track and fuse at half the input resolution (2x2 averaged depth and
+    /// colour): about 3x faster for a small accuracy cost (see README).
+    pub half_resolution: bool,
+    /// Raw depth to metres.
+    pub depth: DepthSettings,
+    /// Filtering and pyramid.
+    pub preprocess: PreprocessConfig,
+    /// Tracking.
+    pub tracker: TrackerConfig,
+    /// Fusion and prediction.
+    pub fusion: FusionConfig,
+}
+
+impl SlamConfig {
+    /// The published defaults for a camera preset.
+    #[must_use]
+    pub fn from_preset(preset: CameraPreset) -> Self {
+        Self {
+            intrinsics: preset.intrinsics(),
+            half_resolution: false,
+            depth: preset.depth_settings(),
+            preprocess: PreprocessConfig::default(),
+            tracker: TrackerConfig::default(),
+            fusion: FusionConfig::default(),
+        }
+    }
+
+    /// Intrinsics of the images tracked and fused (halved with `half_resolution`).
+    #[must_use]
+    pub fn working_intrinsics(&self) -> Intrinsics {
+        if self.half_resolution {
+            self.intrinsics.half()
+        } else {
+            self.intrinsics
+        }
+    }
+
+    /// Checks intrinsics, depth settings and pyramid against each other.
+    pub fn validate(&self) -> Result<(), PipelineError> {
+        let k = &self.intrinsics;
+        let intrinsics_error =
+            |problem: String| PipelineError::InvalidConfig(format!("camera intrinsics: {problem}"));
+        let problem = k.problem();
+        let size_ok = (1..=16384).contains(&k.width) && (1..=16384).contains(&k.height);
+        if !size_ok {
+            if let Some(problem) = problem {
+                return Err(intrinsics_error(problem));
+            }
+        }
+        // An image too small for the pyramid is the more basic problem:
+        // reported before the focal length and principal point.
+        let levels = self.preprocess.levels;
+        let working = self.working_intrinsics();
+        let min_side = working.width.min(working.height);
+        if levels == 0 || levels > 5 || (min_side >> (levels - 1)) < 8 {
+            return Err(PipelineError::InvalidConfig(format!(
+                "{levels} pyramid levels do not fit a {}x{} image",
+                working.width, working.height
+            )));
+        }
+        if let Some(problem) = problem {
+            return Err(intrinsics_error(problem));
+        }
+        self.depth.validate()?;
+        if self.tracker.iterations.len() < levels {
+            return Err(PipelineError::InvalidConfig(format!(
+                "tracker needs iterations for {levels} levels, got {:?}",
+                self.tracker.iterations
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Why the pipeline refused a frame or a configuration; the map is untouched.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum PipelineError {
+    /// The frame could not be decoded or does not fit the sequence.
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    /// The configuration is unusable.
+    #[error("invalid configuration: {0}")]
+    InvalidConfig(String),
+    /// The frame's timestamp is NaN or infinite (seconds or frame number).
+    #[error("timestamp must be a finite number, got {0}")]
+    InvalidTimestamp(f64),
+}
+
+/// Refuses a NaN or infinite timestamp: it would end up in the trajectory
+/// file and break every evaluation against ground truth.
+pub(super) fn check_timestamp(timestamp: f64) -> Result<(), PipelineError> {
+    if timestamp.is_finite() {
+        Ok(())
+    } else {
+        Err(PipelineError::InvalidTimestamp(timestamp))
+    }
+}

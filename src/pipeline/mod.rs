@@ -1,0 +1,359 @@
+//! The frame-by-frame SLAM loop: decode, preprocess, track against the model
+//! prediction, fuse, predict for the next frame.
+//!
+//! Poses are `world_from_camera` (camera to world, metres); the world frame
+//! is the first frame's camera frame.
+//!
+//! [`Pipeline::push_frame`] reads as the stage diagram of `ARCHITECTURE.md`:
+//! `preprocess` → `track` (`recovery.rs`: checks and re-acquisition) →
+//! `fuse` → (loop closure, to come) → `predict` → `count_verdict` → `report`.
+//! Each stage is a method here, or in the file named after it, that owns
+//! its buffers in [`Pipeline`]'s fields.
+
+mod config;
+mod input;
+mod recovery;
+mod report;
+
+pub use config::{PipelineError, SlamConfig};
+pub use report::{FrameReport, StageTimings, Verdict, VerdictCounts};
+
+use crate::clock::now_ms;
+use crate::features::SparseEstimator;
+use crate::frame::{DecodeScratch, RgbdFrame};
+use crate::fusion::{
+    remove_unstable, FusionStats, Integrator, Measured, Prediction, SpatialOrder, SurfelMap,
+};
+use crate::preprocess::{half_resolution_into, FramePyramid};
+use crate::track::verify::TrackingChecks;
+use crate::track::{TrackerConfig, TrackerMode, TrackerWorkspace};
+use config::check_timestamp;
+use glam::DAffine3;
+use recovery::{recovery_tracker, Tracked};
+
+/// Dense RGB-D SLAM state: the map, the trajectory and reusable buffers.
+#[derive(Debug)]
+pub struct Pipeline {
+    config: SlamConfig,
+    pyramid: FramePyramid,
+    /// The input at half resolution, when `half_resolution` is set.
+    half_frame: RgbdFrame,
+    /// The last frame decoded by `push_png`, and the decoder's buffers.
+    decoded: RgbdFrame,
+    /// `decoded` is the frame of the last push, and that push succeeded.
+    decoded_was_pushed: bool,
+    scratch: DecodeScratch,
+    map: SurfelMap,
+    prediction: Prediction,
+    integrator: Integrator,
+    /// Buffer for sorting settled surfels in space at cleanups.
+    order: SpatialOrder,
+    tracker: TrackerWorkspace,
+    trajectory: Vec<(f64, DAffine3)>,
+    last_good: Option<DAffine3>,
+    frame_index: u32,
+    counts: VerdictCounts,
+    recovery: TrackerConfig,
+    /// Features of the last fused frame and of the current one.
+    sparse: SparseEstimator,
+    /// `previous_from_current` of the last two fused frames in a row.
+    velocity: Option<DAffine3>,
+}
+
+impl Pipeline {
+    /// Creates an empty pipeline after validating `config`.
+    pub fn new(config: SlamConfig) -> Result<Self, PipelineError> {
+        config.validate()?;
+        // Grey levels are read only by the photometric term.
+        let photometric = config.tracker.mode != TrackerMode::Icp;
+        let mut pyramid = FramePyramid::new(&config.working_intrinsics(), &config.preprocess);
+        pyramid.with_intensity = photometric;
+        Ok(Self {
+            pyramid,
+            half_frame: RgbdFrame::default(),
+            decoded: RgbdFrame::default(),
+            decoded_was_pushed: false,
+            scratch: DecodeScratch::default(),
+            recovery: recovery_tracker(&config.tracker),
+            sparse: SparseEstimator::new(config.tracker.verify.features)
+                .map_err(|e| PipelineError::InvalidConfig(e.to_string()))?,
+            velocity: None,
+            config,
+            map: SurfelMap::default(),
+            prediction: Prediction::new(photometric),
+            integrator: Integrator::default(),
+            order: SpatialOrder::default(),
+            tracker: TrackerWorkspace::default(),
+            trajectory: Vec::new(),
+            last_good: None,
+            frame_index: 0,
+            counts: VerdictCounts::default(),
+        })
+    }
+
+    /// The configuration in use.
+    #[must_use]
+    pub fn config(&self) -> &SlamConfig {
+        &self.config
+    }
+
+    /// The surfel map (world frame).
+    #[must_use]
+    pub fn map(&self) -> &SurfelMap {
+        &self.map
+    }
+
+    /// `(timestamp, world_from_camera)` of every frame pushed so far.
+    #[must_use]
+    pub fn trajectory(&self) -> &[(f64, DAffine3)] {
+        &self.trajectory
+    }
+
+    /// Surfel slots filled by new surfels or by surfels moved by a cleanup
+    /// or a spatial sort since the last call (for incremental GPU uploads),
+    /// within `0..map().len()`. Merges are not included: see
+    /// [`SurfelMap::take_changed_range`].
+    pub fn take_changed_range(&mut self) -> std::ops::Range<usize> {
+        self.map.take_changed_range()
+    }
+
+    /// The frame of the last push when it was decoded here (`push_png`,
+    /// `push_pixels_and_depth_png`) and accepted; `None` after a failed push,
+    /// a push of an already decoded frame, or a reset. Input resolution.
+    #[must_use]
+    pub fn last_decoded_frame(&self) -> Option<&RgbdFrame> {
+        self.decoded_was_pushed.then_some(&self.decoded)
+    }
+
+    /// Number of frames accepted so far.
+    #[must_use]
+    pub fn frames(&self) -> u32 {
+        self.frame_index
+    }
+
+    /// Verdict counts since creation or the last reset.
+    #[must_use]
+    pub fn counts(&self) -> VerdictCounts {
+        self.counts
+    }
+
+    /// Forgets the map and trajectory, keeping configuration and buffers.
+    /// Everything that indexes the map or remembers a frame is forgotten or
+    /// rebuilt before it is read, so the pipeline then behaves as a new one:
+    /// the same frames give the same trajectory (to the rounding of parallel
+    /// sums; `tests/reset_replay.rs`, `tests/pipeline_properties.rs`).
+    pub fn reset(&mut self) {
+        self.map.clear();
+        // The sorted runs index the old map: kept, the next cleanup would
+        // read past the new one's end.
+        self.order.clear();
+        self.trajectory.clear();
+        self.last_good = None;
+        self.sparse.clear();
+        self.velocity = None;
+        self.frame_index = 0;
+        self.counts = VerdictCounts::default();
+        self.prediction.clear();
+        self.decoded_was_pushed = false;
+    }
+
+    /// Processes one decoded frame stamped `timestamp` (seconds or frame
+    /// number; must be finite). On error nothing changes.
+    ///
+    /// A frame judged lost is not fused and its pose is held at the last good
+    /// one. While lost (and whenever the normal tracker fails) a wider
+    /// re-acquisition search runs from the last good pose against the model
+    /// seen from there; a re-acquired frame is reported as
+    /// [`Verdict::Recovered`] and fused. When the map is at
+    /// `FusionConfig::max_surfels`, stale unstable surfels are evicted first,
+    /// then new surfels are skipped (`FusionStats::skipped`).
+    pub fn push_frame(
+        &mut self,
+        frame: &RgbdFrame,
+        timestamp: f64,
+    ) -> Result<FrameReport, PipelineError> {
+        self.decoded_was_pushed = false;
+        check_timestamp(timestamp)?;
+        let input = self.config.intrinsics;
+        frame.expect_size(input.width, input.height)?;
+        frame.validate()?;
+        let index = self.frame_index;
+        let t0 = now_ms();
+        self.preprocess(frame);
+        let t1 = now_ms();
+        let tracked = self.track();
+        let t2 = now_ms();
+        let mut fusion = FusionStats::default();
+        let mut t3 = t2;
+        if tracked.verdict.is_fused() {
+            fusion = self.fuse(&tracked.pose, index);
+            t3 = now_ms();
+            // The loop-closure stage goes here: after the frame is fused (the
+            // map holds what it saw) and before the prediction for the next
+            // frame is rendered (so that one shows the map as corrected).
+            // See ARCHITECTURE.md, "Adding a stage".
+            self.predict(&tracked.pose);
+        }
+        let t4 = now_ms();
+        self.count_verdict(tracked.verdict);
+        self.trajectory.push((timestamp, tracked.pose));
+        self.frame_index += 1;
+        let timings = StageTimings {
+            decode_ms: 0.0,
+            preprocess_ms: t1 - t0,
+            track_ms: t2 - t1,
+            fuse_ms: t3 - t2,
+            predict_ms: t4 - t3,
+            total_ms: t4 - t0,
+        };
+        Ok(self.report(index, timestamp, &tracked, fusion, timings))
+    }
+
+    /// Stage `preprocess`: halves the frame when asked, then builds the
+    /// pyramid (filtered depth, vertices, normals, grey levels).
+    fn preprocess(&mut self, frame: &RgbdFrame) {
+        let frame = if self.config.half_resolution {
+            let gate = 3.0 * self.config.preprocess.sigma_depth_m;
+            half_resolution_into(frame, gate, &mut self.half_frame);
+            &self.half_frame
+        } else {
+            frame
+        };
+        self.pyramid.build(frame, &self.config.preprocess);
+    }
+
+    /// Stage `track`: the pose of the pyramid's frame against the model
+    /// prediction, with its verdict ([`Pipeline::track_or_recover`]); the
+    /// first frame of a map is the world frame.
+    fn track(&mut self) -> Tracked {
+        let k = self.config.working_intrinsics();
+        // Kept for the sparse estimate (this frame against the last fused
+        // one); corners are found only when an estimate is asked for. A
+        // frame it cannot use leaves the estimator without a current frame.
+        let level0 = self.pyramid.levels.first().map_or(&[][..], |l| &l.vertices);
+        let _ = self
+            .sparse
+            .prepare(&self.pyramid.rgb, level0, k.width, k.height);
+        match self.last_good {
+            None => Tracked {
+                verdict: Verdict::Initialised,
+                pose: DAffine3::IDENTITY,
+                result: None,
+                checks: TrackingChecks::default(),
+            },
+            Some(previous) => self.track_or_recover(&previous),
+        }
+    }
+
+    /// Stage `fuse`: integrates the frame at `pose` into the map, with the
+    /// two cleanups: early eviction when the map is at its budget, and the
+    /// scheduled one every `cleanup_interval_frames`.
+    fn fuse(&mut self, pose: &DAffine3, index: u32) -> FusionStats {
+        let mut removed = 0;
+        if self.map.len() >= self.config.fusion.max_surfels {
+            // Full: evict stale unstable surfels now rather than at the
+            // next scheduled cleanup; adds beyond the budget are skipped
+            // (counted in `FusionStats::skipped`).
+            removed = remove_unstable(&mut self.map, &self.config.fusion, index, &mut self.order);
+        }
+        let mut fusion = self.integrator.integrate(
+            &mut self.map,
+            &self.pyramid,
+            &self.config.working_intrinsics(),
+            pose,
+            index,
+            &self.config.fusion,
+            self.config.depth.max_m,
+        );
+        fusion.removed = removed;
+        self.order.reserve_for(&self.map);
+        if index % self.config.fusion.cleanup_interval_frames.max(1) == 0 {
+            fusion.removed +=
+                remove_unstable(&mut self.map, &self.config.fusion, index, &mut self.order);
+        }
+        fusion
+    }
+
+    /// Stage `predict`: what the next frame is tracked against, all from the
+    /// frame just fused at `pose`: the model prediction, the photometric
+    /// memory of this frame, the constant-velocity motion and the sparse
+    /// estimator's reference.
+    fn predict(&mut self, pose: &DAffine3) {
+        let k = self.config.working_intrinsics();
+        let fusion_cfg = self.config.fusion;
+        let map = &self.map;
+        // The warm-up counts fused frames: frames lost early must not end
+        // it before the map had the frames to become stable.
+        let fused = self.counts.tracked + self.counts.recovered;
+        let far_m = self.config.depth.max_m;
+        // The frame just fused was taken from `pose`: what it measured
+        // hides what lies behind.
+        self.prediction.render(
+            map,
+            pose,
+            &k,
+            (fusion_cfg.depth_gate_m, far_m),
+            Measured {
+                vertices: self.pyramid.levels.first().map_or(&[], |l| &l.vertices),
+                tiles: self.integrator.depth_tiles(),
+            },
+            |i| fusion_cfg.predicts(map, i, fused),
+        );
+        self.tracker
+            .remember_frame(&self.pyramid, pose, &self.config.tracker);
+        // The motion of two fused frames in a row: the next frame's
+        // constant-velocity start.
+        self.velocity = match (self.last_good, self.counts.lost_streak) {
+            (Some(before), 0) => Some(before.inverse() * *pose),
+            _ => None,
+        };
+        self.sparse.current_becomes_reference();
+        self.last_good = Some(*pose);
+    }
+
+    /// Stage `count_verdict`: the run's verdict counts and lost streak.
+    fn count_verdict(&mut self, verdict: Verdict) {
+        match verdict {
+            Verdict::Lost(_) => {
+                self.counts.lost += 1;
+                self.counts.lost_streak += 1;
+            }
+            Verdict::Recovered => {
+                self.counts.recovered += 1;
+                self.counts.lost_streak = 0;
+            }
+            Verdict::Initialised | Verdict::Tracked => {
+                self.counts.tracked += 1;
+                self.counts.lost_streak = 0;
+            }
+        }
+    }
+
+    /// The report of frame `index`, after every stage ran.
+    fn report(
+        &self,
+        index: u32,
+        timestamp: f64,
+        tracked: &Tracked,
+        fusion: FusionStats,
+        timings: StageTimings,
+    ) -> FrameReport {
+        let stats = tracked.result;
+        FrameReport {
+            index,
+            timestamp,
+            world_from_camera: tracked.pose,
+            verdict: tracked.verdict,
+            inliers: stats.map_or(0, |s| s.inliers),
+            inlier_ratio: stats.map_or(1.0, |s| s.inlier_ratio),
+            residual_rms_m: stats.map_or(0.0, |s| s.residual_rms_m),
+            conditioning: stats.map_or(1.0, |s| s.conditioning),
+            surfels: self.map.live_len(),
+            surfel_slots: self.map.len(),
+            fusion,
+            counts: self.counts,
+            checks: tracked.checks,
+            timings,
+        }
+    }
+}

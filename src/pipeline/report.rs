@@ -1,0 +1,105 @@
+//! What the pipeline says about each frame: verdict, counts, timings.
+
+use crate::fusion::FusionStats;
+use crate::track::verify::TrackingChecks;
+use crate::track::LostReason;
+use glam::DAffine3;
+
+/// Tracking outcome of one frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// First frame of the map: pose set to identity.
+    Initialised,
+    /// Tracked against the model and fused.
+    Tracked,
+    /// Re-acquired against the model and fused: the frame before was lost,
+    /// or the normal tracker failed on this frame and the wider
+    /// re-acquisition search (see [`Pipeline::push_frame`](super::Pipeline::push_frame)) succeeded.
+    Recovered,
+    /// Not tracked; not fused; the pose is held at the last good one.
+    Lost(LostReason),
+}
+
+impl Verdict {
+    /// Short name: `initialised`, `tracked`, `recovered`, `lost`.
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Verdict::Initialised => "initialised",
+            Verdict::Tracked => "tracked",
+            Verdict::Recovered => "recovered",
+            Verdict::Lost(_) => "lost",
+        }
+    }
+
+    /// True when the frame was fused (initialised, tracked or recovered).
+    #[must_use]
+    pub fn is_fused(&self) -> bool {
+        !matches!(self, Verdict::Lost(_))
+    }
+}
+
+/// How many frames got each verdict since creation or the last reset.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct VerdictCounts {
+    /// Frames tracked normally (the first frame included).
+    pub tracked: u32,
+    /// Frames lost (not fused).
+    pub lost: u32,
+    /// Frames re-acquired after a loss.
+    pub recovered: u32,
+    /// Frames lost in a row up to the last one (0 when tracking).
+    pub lost_streak: u32,
+}
+
+/// Milliseconds spent in each stage of one frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimings {
+    /// PNG decoding (0 when the caller passed decoded buffers).
+    pub decode_ms: f64,
+    /// Bilateral filter, pyramid, vertex and normal maps.
+    pub preprocess_ms: f64,
+    /// Tracking.
+    pub track_ms: f64,
+    /// Fusion (index map, merge, add, cleanup).
+    pub fuse_ms: f64,
+    /// Model prediction for the next frame.
+    pub predict_ms: f64,
+    /// Whole frame.
+    pub total_ms: f64,
+}
+
+/// What happened to one frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameReport {
+    /// Frame index within this run (0-based).
+    pub index: u32,
+    /// The caller's timestamp (seconds or frame number).
+    pub timestamp: f64,
+    /// Estimated camera pose (camera to world).
+    pub world_from_camera: DAffine3,
+    /// Tracked, lost or initialised.
+    pub verdict: Verdict,
+    /// Inlier correspondences at the finest level.
+    pub inliers: usize,
+    /// Inliers over projected model points.
+    pub inlier_ratio: f64,
+    /// RMS point-to-plane residual, metres.
+    pub residual_rms_m: f64,
+    /// Conditioning of the final 6x6 system.
+    pub conditioning: f64,
+    /// Surfels the map holds after this frame ([`SurfelMap::live_len`](crate::fusion::SurfelMap::live_len): the
+    /// PLY export's vertex count).
+    pub surfels: usize,
+    /// Slots in the map's arrays after this frame ([`SurfelMap::len`](crate::fusion::SurfelMap::len)): the
+    /// surfels plus those absorbed into others and not yet compacted away.
+    pub surfel_slots: usize,
+    /// Fusion counts.
+    pub fusion: FusionStats,
+    /// Verdict counts of the run so far, this frame included.
+    pub counts: VerdictCounts,
+    /// What the independent checks of the tracking result said.
+    pub checks: TrackingChecks,
+    /// Stage timings.
+    pub timings: StageTimings,
+}
