@@ -135,9 +135,9 @@ fn stages(c: &mut Criterion) {
         tiles: &tiles,
     };
     let band = (fusion.depth_gate_m, far);
-    prediction.render(map, &f.pose, &k, band, measured, include);
+    prediction.render(map, &f.pose, &k, band, measured, 0..u32::MAX, include);
     c.bench_function("prediction (map-sized)", |b| {
-        b.iter(|| prediction.render(map, &f.pose, &k, band, measured, include));
+        b.iter(|| prediction.render(map, &f.pose, &k, band, measured, 0..u32::MAX, include));
     });
 
     let camera_from_world = RigidF32::from_affine(&f.pose.inverse());

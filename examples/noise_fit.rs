@@ -56,9 +56,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             vertices: &vertices,
             tiles: &tiles,
         };
-        prediction.render(map, pose, &k, (GATE_M, config.depth.max_m), measured, |i| {
-            map.confidences[i] >= config.fusion.stable_confidence
-        });
+        prediction.render(
+            map,
+            pose,
+            &k,
+            (GATE_M, config.depth.max_m),
+            measured,
+            0..u32::MAX,
+            |i| map.confidences()[i] >= config.fusion.stable_confidence,
+        );
         let camera_from_world = pose.inverse().as_affine3a();
         for (i, q) in vertices.iter().enumerate() {
             let (p, n) = (prediction.vertices[i], prediction.normals[i]);

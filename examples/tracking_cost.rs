@@ -45,7 +45,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         vertices: &pyramid.levels[0].vertices,
         tiles: &tiles,
     };
-    prediction.render(map, &pose, &k, band, measured, |i| {
+    prediction.render(map, &pose, &k, band, measured, 0..u32::MAX, |i| {
         config.fusion.predicts(map, i, frames as u32)
     });
     pyramid.build(&read_frame(&dir, last, &config.depth)?, &config.preprocess);

@@ -90,8 +90,8 @@ fn synthetic_room_mesh_lies_on_the_true_surface_and_covers_it() {
     let map = slam.map();
     let surfel_mean = {
         let stable: Vec<f64> = (0..map.len())
-            .filter(|&i| map.confidences[i] >= MeshConfig::default().min_confidence)
-            .map(|i| surface_distance(map.positions[i]))
+            .filter(|&i| map.confidences()[i] >= MeshConfig::default().min_confidence)
+            .map(|i| surface_distance(map.positions()[i]))
             .collect();
         stable.iter().sum::<f64>() / stable.len() as f64
     };
@@ -119,10 +119,10 @@ fn synthetic_room_mesh_lies_on_the_true_surface_and_covers_it() {
     let grid = PointGrid::new(in_scene.iter().map(|p| p.as_vec3()), 0.02);
     let surfel_grid = PointGrid::new(
         (0..map.len())
-            .filter(|&i| map.confidences[i] >= config.min_confidence)
+            .filter(|&i| map.confidences()[i] >= config.min_confidence)
             .map(|i| {
                 world_from_map
-                    .transform_point3(map.positions[i].as_dvec3())
+                    .transform_point3(map.positions()[i].as_dvec3())
                     .as_vec3()
             }),
         0.02,
@@ -189,13 +189,13 @@ fn teddy_mesh_invents_no_geometry() {
     // already covers the pixel, so far and oblique surfaces have sparse
     // centres on wide disks). Disks whose centre is within 3 cm are searched.
     let stable: Vec<usize> = (0..map.len())
-        .filter(|&i| map.confidences[i] >= config.min_confidence)
+        .filter(|&i| map.confidences()[i] >= config.min_confidence)
         .collect();
     let cell = 0.03;
     let mut cells: HashMap<IVec3, Vec<usize>> = HashMap::new();
     for &i in &stable {
         cells
-            .entry((map.positions[i] / cell).floor().as_ivec3())
+            .entry((map.positions()[i] / cell).floor().as_ivec3())
             .or_default()
             .push(i);
     }
@@ -209,10 +209,10 @@ fn teddy_mesh_invents_no_geometry() {
                         .get(&(c + IVec3::new(dx, dy, dz)))
                         .map_or(&[][..], Vec::as_slice)
                     {
-                        let d = q - map.positions[i];
-                        let along = d.dot(map.normals[i]);
+                        let d = q - map.positions()[i];
+                        let along = d.dot(map.normals()[i]);
                         let across = (d.length_squared() - along * along).max(0.0).sqrt();
-                        let off = (across - map.radii[i]).max(0.0);
+                        let off = (across - map.radii()[i]).max(0.0);
                         best = best.min((off * off + along * along).sqrt());
                     }
                 }
@@ -225,7 +225,7 @@ fn teddy_mesh_invents_no_geometry() {
         .iter()
         .filter(|&&p| disk_distance(p) <= 0.01)
         .count();
-    let centre_grid = PointGrid::new(stable.iter().map(|&i| map.positions[i]), 0.01);
+    let centre_grid = PointGrid::new(stable.iter().map(|&i| map.positions()[i]), 0.01);
     let centre_within = mesh
         .positions
         .iter()

@@ -211,6 +211,10 @@ fn random_config(pool: &Pool, rng: &mut Rng) -> SlamConfig {
     if rng.chance(0.5) {
         config.fusion.max_surfels = rng.range(pool.small_budget.0, pool.small_budget.1);
     }
+    if rng.chance(0.3) {
+        // A short active window: surfels go inactive within a case.
+        config.fusion.active_window_frames = rng.range(1, 30) as u32;
+    }
     config
 }
 
@@ -250,12 +254,13 @@ fn check(slam: &Pipeline, model: &Model, at: &dyn Fn(&str) -> String) {
     let map = slam.map();
     let n = map.len();
     let lens = [
-        map.positions.len(),
-        map.normals.len(),
-        map.colours.len(),
-        map.radii.len(),
-        map.confidences.len(),
-        map.first_seen.len(),
+        map.positions().len(),
+        map.normals().len(),
+        map.colours().len(),
+        map.radii().len(),
+        map.confidences().len(),
+        map.first_seen().len(),
+        map.last_seen().len(),
     ];
     assert!(
         lens.iter().all(|&l| l == n),
@@ -263,7 +268,7 @@ fn check(slam: &Pipeline, model: &Model, at: &dyn Fn(&str) -> String) {
         at(&format!("array lengths {lens:?}"))
     );
     assert!(map.all_finite(), "{}", at("a NaN or infinity in the map"));
-    let live = map.confidences.iter().filter(|&&c| c >= 0.0).count();
+    let live = map.confidences().iter().filter(|&&c| c >= 0.0).count();
     assert_eq!(map.live_len(), live, "{}", at("live surfels"));
     assert_eq!(
         map.live_len() + map.absorbed_len(),
@@ -276,6 +281,18 @@ fn check(slam: &Pipeline, model: &Model, at: &dyn Fn(&str) -> String) {
         "{}",
         at("over the budget")
     );
+    // Times in the map: created no later than last updated, and both at a
+    // frame pushed since the last reset (the current one is frames - 1).
+    let frames = slam.frames();
+    for (i, (&first, &last)) in map.first_seen().iter().zip(map.last_seen()).enumerate() {
+        assert!(
+            first <= last && last < frames,
+            "{}",
+            at(&format!(
+                "surfel {i}: first_seen {first}, last_seen {last}, {frames} frames"
+            ))
+        );
+    }
     let c = slam.counts();
     let frames = slam.frames() as usize;
     assert_eq!(frames, model.accepted.len(), "{}", at("frames accepted"));

@@ -252,7 +252,7 @@ fn tum_teddy_with_dropped_blank_and_foreign_frames() {
     let mut stable_before_bad = 0;
     let stable = |slam: &Pipeline| {
         let c = slam.config().fusion.stable_confidence;
-        slam.map().confidences.iter().filter(|&&x| x >= c).count()
+        slam.map().confidences().iter().filter(|&&x| x >= c).count()
     };
     for item in &stream {
         let (frame, t, bad) = match *item {

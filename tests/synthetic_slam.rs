@@ -82,14 +82,14 @@ fn fusing_a_static_noisy_view_converges_to_the_surface() {
     }
     let map = slam.map();
     let stable: Vec<usize> = (0..map.len())
-        .filter(|&i| map.confidences[i] >= config.fusion.stable_confidence)
+        .filter(|&i| map.confidences()[i] >= config.fusion.stable_confidence)
         .collect();
     assert!(
         stable.len() > k.pixel_count() / 4,
         "only {} stable surfels",
         stable.len()
     );
-    let fused_rms = surface_error(&mut stable.iter().map(|&i| map.positions[i].as_dvec3()));
+    let fused_rms = surface_error(&mut stable.iter().map(|&i| map.positions()[i].as_dvec3()));
     assert!(
         fused_rms < 0.5 * single_frame_rms && fused_rms < 0.003,
         "fused surfels {fused_rms:.5} m from the surface vs {single_frame_rms:.5} m for one frame"
@@ -113,8 +113,8 @@ fn settled_surfels_are_no_longer_moved_by_merges() {
         for i in 0..10u64 {
             let map = slam.map();
             before = (0..map.len())
-                .filter(|&s| map.confidences[s] >= 3.0)
-                .map(|s| (s, map.positions[s]))
+                .filter(|&s| map.confidences()[s] >= 3.0)
+                .map(|s| (s, map.positions()[s]))
                 .collect();
             let f = synthetic::render(&scene, &k, &pose, &NoiseModel::kinect(), 200 + i)
                 .to_frame(&config.depth)
@@ -126,7 +126,7 @@ fn settled_surfels_are_no_longer_moved_by_merges() {
         assert!(map.all_finite());
         let moved = before
             .iter()
-            .filter(|&&(s, p)| map.positions[s] != p)
+            .filter(|&&(s, p)| map.positions()[s] != p)
             .count();
         (before.len(), moved)
     };
@@ -211,7 +211,7 @@ fn revisiting_the_same_views_does_not_grow_the_map() {
     let stable = |slam: &Pipeline| {
         let map = slam.map();
         (0..map.len())
-            .filter(|&i| map.confidences[i] >= config.fusion.stable_confidence)
+            .filter(|&i| map.confidences()[i] >= config.fusion.stable_confidence)
             .count()
     };
     let mut after_two_passes = 0;

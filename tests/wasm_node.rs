@@ -402,8 +402,8 @@ fn rgba_with_depth_png_matches_push_frame() {
     assert_eq!(trajectory_of(&by_png), trajectory_of(&by_pixels));
     assert_eq!(by_png.surfel_count(), by_pixels.surfel_count());
     assert_eq!(
-        by_png.pipeline().map().colours,
-        by_pixels.pipeline().map().colours
+        by_png.pipeline().map().colours(),
+        by_pixels.pipeline().map().colours()
     );
 
     // The preview is the last frame's depth under each thumbnail pixel centre, in metres.

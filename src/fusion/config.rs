@@ -2,6 +2,7 @@
 
 use super::SurfelMap;
 use crate::noise::SensorNoise;
+use std::ops::Range;
 
 /// Settings of the fusion stage.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,6 +45,14 @@ pub struct FusionConfig {
     /// evicts stale unstable surfels, then new surfels are skipped (counted
     /// in `FusionStats::skipped`) while merges go on. 40 bytes per surfel.
     pub max_surfels: usize,
+    /// Surfels not updated for this many frames are inactive: tracking (the
+    /// prediction) and fusion (association, merges, absorbed duplicates)
+    /// read only the active ones, so per-frame cost follows the recently
+    /// seen part of the scene. Inactive surfels stay in the map, are drawn
+    /// and exported; loop closure renders them separately. 200 as in
+    /// ElasticFusion (Whelan et al. 2015). Counted in pushed frames, lost
+    /// ones included; 0 counts as 1.
+    pub active_window_frames: u32,
 }
 
 impl Default for FusionConfig {
@@ -61,6 +70,7 @@ impl Default for FusionConfig {
             noise: SensorNoise::default(),
             min_noise_weight: 0.2,
             max_surfels: 4_000_000,
+            active_window_frames: 200,
         }
     }
 }
@@ -72,6 +82,24 @@ impl FusionConfig {
     pub fn predicts(&self, map: &SurfelMap, i: usize, frame: u32) -> bool {
         let c = map.confidences[i];
         c >= self.stable_confidence || (frame < self.warmup_frames && c >= 0.0)
+    }
+
+    /// The `last_seen` frames of the surfels active at frame `frame`: those
+    /// updated in the last `active_window_frames` frames, `frame` included.
+    /// Pass it to [`super::Prediction::render`] for the active model.
+    #[inline]
+    #[must_use]
+    pub fn active_at(&self, frame: u32) -> Range<u32> {
+        frame.saturating_sub(self.active_window_frames.max(1) - 1)..u32::MAX
+    }
+
+    /// The `last_seen` frames of the surfels inactive at frame `frame`: all
+    /// those before [`FusionConfig::active_at`]. Pass it to
+    /// [`super::Prediction::render`] for the inactive model (loop closure).
+    #[inline]
+    #[must_use]
+    pub fn inactive_at(&self, frame: u32) -> Range<u32> {
+        0..self.active_at(frame).start
     }
 
     /// Whether a surfel of this confidence is settled: merges and absorbed

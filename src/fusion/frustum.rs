@@ -11,19 +11,21 @@ use std::ops::Range;
 const NEAR_M: f32 = 0.05;
 
 /// Writes into `out` the surfel index ranges of the map blocks that may be
-/// visible from `camera_from_world` up to depth `far_m` (metres) and whose
-/// box (world frame) `also` accepts.
+/// visible from `camera_from_world` up to depth `far_m` (metres), may hold
+/// a surfel last updated at a frame in `seen`, and whose box (world frame)
+/// `also` accepts.
 pub fn visible_blocks(
     map: &SurfelMap,
     k: &Intrinsics,
-    camera_from_world: &RigidF32,
-    far_m: f32,
+    (camera_from_world, far_m): (&RigidF32, f32),
+    seen: &Range<u32>,
     mut also: impl FnMut(Vec3, Vec3) -> bool,
     out: &mut Vec<Range<usize>>,
 ) {
     let frustum = Frustum::new(k, camera_from_world, NEAR_M, far_m);
     map.bounds().select(
         map.len(),
+        seen,
         |lo, hi| frustum.may_contain_box(lo, hi) && also(lo, hi),
         out,
     );

@@ -76,6 +76,8 @@ pub struct Integrator {
 struct ChunkUpdate {
     visible: bool,
     merged: usize,
+    /// Per block of the chunk: whether a surfel of it won its pixel.
+    seen: [bool; BLOCKS_PER_CHUNK],
     /// Per block of the chunk, box around the merged surfels' new
     /// positions, world frame, metres.
     min: [Vec3; BLOCKS_PER_CHUNK],
@@ -89,6 +91,7 @@ impl ChunkUpdate {
     fn reset(&mut self) {
         self.visible = false;
         self.merged = 0;
+        self.seen = [false; BLOCKS_PER_CHUNK];
         self.min = [Vec3::splat(f32::INFINITY); BLOCKS_PER_CHUNK];
         self.max = [Vec3::splat(f32::NEG_INFINITY); BLOCKS_PER_CHUNK];
         self.losers.clear();
@@ -107,6 +110,10 @@ struct FrameView<'a> {
     k: &'a Intrinsics,
     camera_from_world: RigidF32,
     world_from_camera: RigidF32,
+    /// Index of the frame being fused.
+    frame: u32,
+    /// `last_seen` frames of the surfels fusion reads (the active ones).
+    active: Range<u32>,
 }
 
 impl Integrator {
@@ -145,6 +152,8 @@ impl Integrator {
             k,
             camera_from_world: RigidF32::from_affine(&world_from_camera.inverse()),
             world_from_camera: RigidF32::from_affine(world_from_camera),
+            frame,
+            active: config.active_at(frame),
         };
         self.reset_frame(&view);
         self.cull(map, &view, config, far_m);
@@ -157,7 +166,7 @@ impl Integrator {
         stats.absorbed =
             absorb_redundant(&mut self.chunks, (&self.best, &self.pixels), map, config);
         stats.visited = self.visible.iter().map(ExactSizeIterator::len).sum();
-        self.add_uncovered(map, &view, frame, config, &mut stats);
+        self.add_uncovered(map, &view, config, &mut stats);
         stats
     }
 
@@ -175,16 +184,17 @@ impl Integrator {
         self.tiles.build(&view.level0.vertices, view.k.width);
     }
 
-    /// Keeps the map blocks in the view frustum and not wholly behind the
-    /// measurements (`self.visible`), and marks their chunks visible.
+    /// Keeps the map blocks in the view frustum, not wholly behind the
+    /// measurements and holding active surfels (`self.visible`), and marks
+    /// their chunks visible.
     fn cull(&mut self, map: &SurfelMap, view: &FrameView<'_>, config: &FusionConfig, far_m: f32) {
         let (k, camera_from_world) = (view.k, &view.camera_from_world);
         let tiles = &self.tiles;
         visible_blocks(
             map,
             k,
-            camera_from_world,
-            far_m + config.depth_gate_m,
+            (camera_from_world, far_m + config.depth_gate_m),
+            &view.active,
             |lo, hi| tiles.may_reach(k, camera_from_world, (lo, hi), config.depth_gate_m),
             &mut self.visible,
         );
@@ -198,9 +208,11 @@ impl Integrator {
         }
     }
 
-    /// Finds each visible surfel's pixel and keeps it when the surfel passes
-    /// the depth and normal gates (`self.pixels`); per pixel the most
-    /// confident candidate wins (`self.best`, an atomic maximum).
+    /// Finds each visible active surfel's pixel and keeps it when the surfel
+    /// passes the depth and normal gates (`self.pixels`); per pixel the most
+    /// confident candidate wins (`self.best`, an atomic maximum). Inactive
+    /// surfels are no candidates: a surface seen again after the active
+    /// window gets a second copy, which loop closure aligns and fuses.
     fn associate(&mut self, map: &SurfelMap, view: &FrameView<'_>, config: &FusionConfig) {
         let (chunks, visible) = (&self.chunks, &self.visible);
         let cos_gate = config.normal_gate_deg.to_radians().cos();
@@ -231,7 +243,7 @@ impl Integrator {
                         }
                         let pixel = *slot as usize;
                         *slot = NO_PIXEL;
-                        if map.confidences[j] < 0.0 {
+                        if map.confidences[j] < 0.0 || !view.active.contains(&map.last_seen[j]) {
                             continue;
                         }
                         // Recomputed rather than stored: the vectorised loop
@@ -277,9 +289,10 @@ impl Integrator {
     }
 
     /// Merges each pixel's winning surfel with the pixel's measurement (in
-    /// parallel over the chunks; settled surfels are left as they are),
-    /// collects the losers for [`absorb_redundant`], and grows the blocks'
-    /// boxes; returns the number of winners.
+    /// parallel over the chunks; settled surfels are left as they are, but
+    /// every winner is marked updated at this frame, so a surface in view
+    /// stays active), collects the losers for [`absorb_redundant`], and
+    /// grows the blocks' boxes; returns the number of winners.
     fn merge_winners(
         &mut self,
         map: &mut SurfelMap,
@@ -308,6 +321,8 @@ impl Integrator {
                     continue;
                 }
                 update.merged += 1;
+                chunk.last_seen[local] = view.frame;
+                update.seen[local / BLOCK] = true;
                 if config.is_settled(chunk.confidences[local]) {
                     continue;
                 }
@@ -327,6 +342,9 @@ impl Integrator {
             if update.merged > 0 {
                 for (b, (&lo, &hi)) in update.min.iter().zip(&update.max).enumerate() {
                     map.grow_bounds(c * CHUNK + b * BLOCK, lo, hi);
+                    if update.seen[b] {
+                        map.saw_block(c * CHUNK + b * BLOCK, view.frame);
+                    }
                 }
                 merged += update.merged;
             }
@@ -341,7 +359,6 @@ impl Integrator {
         &mut self,
         map: &mut SurfelMap,
         view: &FrameView<'_>,
-        frame: u32,
         config: &FusionConfig,
         stats: &mut FusionStats,
     ) {
@@ -397,7 +414,7 @@ impl Integrator {
                 m.colour,
                 m.radius,
                 measure.gain(i),
-                frame,
+                view.frame,
             );
             stats.added += 1;
         }

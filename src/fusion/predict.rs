@@ -9,6 +9,7 @@ use crate::fusion::{DepthTiles, SurfelMap};
 use crate::se3::RigidF32;
 use glam::{DAffine3, Vec3};
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// What the camera measured from the pose a prediction is rendered at.
 #[derive(Debug, Clone, Copy)]
@@ -63,12 +64,22 @@ impl Prediction {
         self.valid = 0;
     }
 
-    /// Renders the surfels selected by `include` into the view
-    /// `world_from_camera` up to depth `far_m`: per pixel that `measured`
-    /// holds, the most confident surfel lying at most `depth_band_m` behind
-    /// the measured point (see `index_map`). Map blocks lying more than
-    /// `depth_band_m` behind every measured point they project onto are
-    /// skipped: the measured surface hides them.
+    /// Renders the surfels last updated at a frame in `seen` and selected
+    /// by `include` into the view `world_from_camera` up to depth `far_m`:
+    /// per pixel that `measured` holds, the most confident surfel lying at
+    /// most `depth_band_m` behind the measured point (see `index_map`).
+    /// Map blocks lying more than `depth_band_m` behind every measured point
+    /// they project onto are skipped: the measured surface hides them; so
+    /// are blocks without a surfel in `seen`, so that the cost follows the
+    /// part of the map rendered.
+    ///
+    /// `seen` is [`super::FusionConfig::active_at`] for the active model
+    /// (what the tracker aligns to), [`super::FusionConfig::inactive_at`]
+    /// for the inactive model (what loop closure registers the active one
+    /// against; render it into a second `Prediction` with the same pose and
+    /// measurement), `0..u32::MAX` for all surfels. A pixel without a
+    /// measurement shows nothing, whatever `seen`.
+    #[allow(clippy::too_many_arguments)]
     pub fn render(
         &mut self,
         map: &SurfelMap,
@@ -76,6 +87,7 @@ impl Prediction {
         k: &Intrinsics,
         (depth_band_m, far_m): (f32, f32),
         measured: Measured<'_>,
+        seen: Range<u32>,
         include: impl Fn(usize) -> bool + Sync,
     ) {
         let n = k.pixel_count();
@@ -93,8 +105,8 @@ impl Prediction {
         visible_blocks(
             map,
             k,
-            &camera_from_world,
-            far_m,
+            (&camera_from_world, far_m),
+            &seen,
             |lo, hi| {
                 measured
                     .tiles
@@ -109,7 +121,7 @@ impl Prediction {
             k,
             measured.vertices,
             depth_band_m,
-            include,
+            |i| seen.contains(&map.last_seen[i]) && include(i),
         );
         let w = k.width;
         let index = &self.index;

@@ -64,6 +64,8 @@ pub struct ChunkMut<'a> {
     pub radii: &'a mut [f32],
     /// Confidences.
     pub confidences: &'a mut [f32],
+    /// Frame of each surfel's last update.
+    pub last_seen: &'a mut [u32],
 }
 
 /// Reusable buffers for [`SurfelMap::reorder`], one per attribute type.
@@ -93,20 +95,27 @@ fn gather<T: Copy>(values: &mut [T], source: impl Fn(usize) -> usize, scratch: &
 }
 
 /// All surfels of the model, structure of arrays; index `i` is one surfel.
+///
+/// The arrays are read through slice getters ([`SurfelMap::positions`],
+/// ...) and changed only through methods, so every array keeps the same
+/// length and the block boxes and counters stay in step with them.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SurfelMap {
     /// Centre of each surfel, world frame, metres.
-    pub positions: Vec<Vec3>,
+    pub(crate) positions: Vec<Vec3>,
     /// Unit normal of each surfel, world frame, pointing towards the cameras that saw it.
-    pub normals: Vec<Vec3>,
+    pub(crate) normals: Vec<Vec3>,
     /// Colour, RGBA8 (A = 255).
-    pub colours: Vec<[u8; 4]>,
+    pub(crate) colours: Vec<[u8; 4]>,
     /// Disk radius, metres.
-    pub radii: Vec<f32>,
+    pub(crate) radii: Vec<f32>,
     /// Accumulated confidence (sum of the radial weights of merged measurements).
-    pub confidences: Vec<f32>,
+    pub(crate) confidences: Vec<f32>,
     /// Frame index at which the surfel was created.
-    pub first_seen: Vec<u32>,
+    pub(crate) first_seen: Vec<u32>,
+    /// Frame index at which the surfel was last updated (created, merged
+    /// with a measurement, or won its pixel as a settled surfel).
+    pub(crate) last_seen: Vec<u32>,
     /// Lowest index changed since the last `take_changed_range`.
     change_lo: usize,
     /// One past the highest index changed since the last `take_changed_range`.
@@ -147,6 +156,65 @@ impl ChunkMut<'_> {
 }
 
 impl SurfelMap {
+    /// Centre of each surfel, world frame, metres.
+    #[must_use]
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    /// Unit normal of each surfel, world frame, pointing towards the cameras
+    /// that saw it.
+    #[must_use]
+    pub fn normals(&self) -> &[Vec3] {
+        &self.normals
+    }
+
+    /// Colour of each surfel, RGBA8 (A = 255).
+    #[must_use]
+    pub fn colours(&self) -> &[[u8; 4]] {
+        &self.colours
+    }
+
+    /// Disk radius of each surfel, metres.
+    #[must_use]
+    pub fn radii(&self) -> &[f32] {
+        &self.radii
+    }
+
+    /// Accumulated confidence of each surfel (sum of the radial weights of
+    /// the merged measurements); [`super::ABSORBED`] (negative) for a surfel
+    /// absorbed into another and awaiting removal.
+    #[must_use]
+    pub fn confidences(&self) -> &[f32] {
+        &self.confidences
+    }
+
+    /// Frame index (0-based, frames pushed since the last reset) at which
+    /// each surfel was created.
+    #[must_use]
+    pub fn first_seen(&self) -> &[u32] {
+        &self.first_seen
+    }
+
+    /// Frame index at which each surfel was last updated: created, merged
+    /// with a measurement, or matched by one as a settled surfel. A surfel
+    /// not updated for `FusionConfig::active_window_frames` is inactive
+    /// (see [`super::FusionConfig::active_at`]): tracking and fusion no
+    /// longer read it, but it stays in the map, drawn and exported.
+    #[must_use]
+    pub fn last_seen(&self) -> &[u32] {
+        &self.last_seen
+    }
+
+    /// Records that surfel `i` was updated at frame `frame` (never moves
+    /// its `last_seen` back). Does nothing if `i` is out of range.
+    pub fn touch(&mut self, i: usize, frame: u32) {
+        if let Some(f) = self.last_seen.get_mut(i) {
+            *f = (*f).max(frame);
+            self.bounds.saw(i, frame);
+        }
+    }
+
     /// The values of surfel `i`.
     #[must_use]
     pub fn surfel(&self, i: usize) -> Surfel {
@@ -183,9 +251,10 @@ impl SurfelMap {
         self.positions.len()
     }
 
-    /// Length every array has at least: [`SurfelMap::len`] for a sound map.
-    /// Readers that index all arrays by one index stop here, so a map whose
-    /// public arrays were edited to different lengths cannot make them panic.
+    /// Length every array has at least: [`SurfelMap::len`], since the arrays
+    /// change only through this type's methods. Readers that index all
+    /// arrays by one index stop here anyway, so that a bug in one of those
+    /// methods shows as missing surfels rather than a panic.
     #[must_use]
     pub fn common_len(&self) -> usize {
         [
@@ -194,6 +263,8 @@ impl SurfelMap {
             self.colours.len(),
             self.radii.len(),
             self.confidences.len(),
+            self.first_seen.len(),
+            self.last_seen.len(),
         ]
         .into_iter()
         .min()
@@ -278,6 +349,7 @@ impl SurfelMap {
         self.radii.clear();
         self.confidences.clear();
         self.first_seen.clear();
+        self.last_seen.clear();
     }
 
     /// Reserves room for `additional` more surfels in every array.
@@ -288,9 +360,11 @@ impl SurfelMap {
         self.radii.reserve(additional);
         self.confidences.reserve(additional);
         self.first_seen.reserve(additional);
+        self.last_seen.reserve(additional);
     }
 
-    /// Appends one surfel.
+    /// Appends one surfel created at frame `frame` (its first and last
+    /// update).
     #[allow(clippy::too_many_arguments)]
     pub fn push(
         &mut self,
@@ -307,14 +381,17 @@ impl SurfelMap {
         self.radii.push(radius);
         self.confidences.push(confidence);
         self.first_seen.push(frame);
+        self.last_seen.push(frame);
         let i = self.positions.len() - 1;
         self.bounds.grow(i, position);
+        self.bounds.saw(i, frame);
         self.mark_changed(i);
     }
 
     /// Calls `f` in parallel on every chunk (see [`ChunkMut`]) with the
     /// matching item of `per_chunk` (chunks past its length are skipped).
-    /// The caller must report moved surfels with [`SurfelMap::grow_bounds`].
+    /// The caller must report moved surfels with [`SurfelMap::grow_bounds`]
+    /// and updated ones with [`SurfelMap::saw_block`].
     pub fn for_each_chunk_mut<T: Send>(
         &mut self,
         per_chunk: &mut [T],
@@ -326,21 +403,22 @@ impl SurfelMap {
             .zip(self.colours.par_chunks_mut(CHUNK))
             .zip(self.radii.par_chunks_mut(CHUNK))
             .zip(self.confidences.par_chunks_mut(CHUNK))
+            .zip(self.last_seen.par_chunks_mut(CHUNK))
             .zip(per_chunk.par_iter_mut())
             .enumerate()
-            .for_each(
-                |(c, (((((positions, normals), colours), radii), confidences), item))| {
-                    let chunk = ChunkMut {
-                        first: c * CHUNK,
-                        positions,
-                        normals,
-                        colours,
-                        radii,
-                        confidences,
-                    };
-                    f(chunk, item);
-                },
-            );
+            .for_each(|(c, (((attributes, confidences), last_seen), item))| {
+                let (((positions, normals), colours), radii) = attributes;
+                let chunk = ChunkMut {
+                    first: c * CHUNK,
+                    positions,
+                    normals,
+                    colours,
+                    radii,
+                    confidences,
+                    last_seen,
+                };
+                f(chunk, item);
+            });
     }
 
     /// Extends the box of the block holding surfel `i` by the box
@@ -352,7 +430,16 @@ impl SurfelMap {
         }
     }
 
-    /// The spatial index: boxes around blocks of consecutive surfels.
+    /// Records that surfels of the block holding surfel `i` were updated at
+    /// frame `frame` (after setting their `last_seen` through [`ChunkMut`]).
+    pub fn saw_block(&mut self, i: usize, frame: u32) {
+        if i < self.len() {
+            self.bounds.saw(i, frame);
+        }
+    }
+
+    /// The spatial index: boxes around blocks of consecutive surfels, with
+    /// the frames their surfels were last updated.
     #[must_use]
     pub fn bounds(&self) -> &ChunkBounds {
         &self.bounds
@@ -379,12 +466,14 @@ impl SurfelMap {
             source,
             &mut scratch.floats,
         );
-        gather(&mut self.first_seen[r], source, &mut scratch.frames);
+        gather(&mut self.first_seen[r.clone()], source, &mut scratch.frames);
+        gather(&mut self.last_seen[r], source, &mut scratch.frames);
     }
 
     /// Recomputes the chunk boxes from the chunk holding surfel `first` on.
     pub fn rebuild_bounds_from(&mut self, first: usize) {
-        self.bounds.rebuild_from(&self.positions, first);
+        self.bounds
+            .rebuild_from(&self.positions, &self.last_seen, first);
     }
 
     /// Keeps only the surfels for which `keep(i)` is true, preserving order.
@@ -415,6 +504,7 @@ impl SurfelMap {
                 self.radii[write] = self.radii[read];
                 self.confidences[write] = self.confidences[read];
                 self.first_seen[write] = self.first_seen[read];
+                self.last_seen[write] = self.last_seen[read];
             }
             write += 1;
         }
@@ -431,8 +521,10 @@ impl SurfelMap {
         self.radii.truncate(write);
         self.confidences.truncate(write);
         self.first_seen.truncate(write);
+        self.last_seen.truncate(write);
         if first_removed < len {
-            self.bounds.rebuild_from(&self.positions, first_removed);
+            self.bounds
+                .rebuild_from(&self.positions, &self.last_seen, first_removed);
         }
     }
 

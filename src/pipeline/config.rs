@@ -3,6 +3,7 @@
 use crate::camera::{CameraPreset, Intrinsics};
 use crate::frame::{DepthSettings, FrameError};
 use crate::fusion::FusionConfig;
+use crate::noise::SensorNoise;
 use crate::preprocess::PreprocessConfig;
 use crate::track::TrackerConfig;
 use thiserror::Error;
@@ -34,9 +35,22 @@ impl SlamConfig {
             half_resolution: false,
             depth: preset.depth_settings(),
             preprocess: PreprocessConfig::default(),
-            tracker: TrackerConfig::default(),
-            fusion: FusionConfig::default(),
+            tracker: TrackerConfig {
+                noise: preset.sensor_noise(),
+                ..TrackerConfig::default()
+            },
+            fusion: FusionConfig {
+                noise: preset.sensor_noise(),
+                ..FusionConfig::default()
+            },
         }
+    }
+
+    /// Sets the sensor's depth noise model, which weights both tracking and
+    /// fusion ([`SensorNoise::uniform`] turns the weighting off).
+    pub fn set_noise(&mut self, noise: SensorNoise) {
+        self.tracker.noise = noise;
+        self.fusion.noise = noise;
     }
 
     /// Intrinsics of the images tracked and fused (halved with `half_resolution`).
@@ -76,6 +90,11 @@ impl SlamConfig {
             return Err(intrinsics_error(problem));
         }
         self.depth.validate()?;
+        for noise in [&self.tracker.noise, &self.fusion.noise] {
+            if let Some(problem) = noise.problem() {
+                return Err(PipelineError::InvalidConfig(problem));
+            }
+        }
         if self.tracker.iterations.len() < levels {
             return Err(PipelineError::InvalidConfig(format!(
                 "tracker needs iterations for {levels} levels, got {:?}",

@@ -297,6 +297,7 @@ impl Pipeline {
                 vertices: self.pyramid.levels.first().map_or(&[], |l| &l.vertices),
                 tiles: self.integrator.depth_tiles(),
             },
+            fusion_cfg.active_at(self.frame_index),
             |i| fusion_cfg.predicts(map, i, fused),
         );
         self.tracker
