@@ -146,7 +146,7 @@ impl ArchiveReader {
                 "{name}: the archive source must be a Uint8Array or {{ size: number, read(offset, length) }}"
             )));
         };
-        let inner = Reader::new(bytes, name).map_err(|e| JsError::new(&e.to_string()))?;
+        let inner = Reader::new(bytes, name)?;
         Ok(Self { inner })
     }
 
@@ -172,8 +172,6 @@ impl ArchiveReader {
     /// The bytes of one file (a copy); throws an Error naming the archive and
     /// the file when it is absent or cannot be read.
     pub fn read(&mut self, name: &str) -> Result<Vec<u8>, JsError> {
-        self.inner
-            .read(name)
-            .map_err(|e| JsError::new(&e.to_string()))
+        Ok(self.inner.read(name)?)
     }
 }

@@ -7,7 +7,7 @@ use std::collections::HashMap;
 use js_sys::{Array, Reflect};
 use wasm_bindgen::prelude::*;
 
-use super::convert::{kind_name, object, strings_from_js, tum_row};
+use super::convert::{ate_to_js, kind_name, max_dt_from_js, object, strings_from_js, tum_row};
 use crate::dataset::{self, trajectory::parse_tum};
 use crate::eval;
 
@@ -19,8 +19,8 @@ use crate::eval;
 pub fn detect_layout(
     #[wasm_bindgen(js_name = "fileNames", unchecked_param_type = "string[]")] file_names: JsValue,
 ) -> Result<JsValue, JsError> {
-    let names = strings_from_js(&file_names, "fileNames").map_err(|m| JsError::new(&m))?;
-    let layout = dataset::detect_layout(&names).map_err(|e| JsError::new(&e.to_string()))?;
+    let names = strings_from_js(&file_names, "fileNames")?;
+    let layout = dataset::detect_layout(&names)?;
     let index_files: Array = layout
         .index_files
         .iter()
@@ -56,8 +56,8 @@ pub fn parse_sequence(
     name_hint: JsValue,
 ) -> Result<JsValue, JsError> {
     let name_hint = name_hint.as_string();
-    let names = strings_from_js(&file_names, "fileNames").map_err(|m| JsError::new(&m))?;
-    let layout = dataset::detect_layout(&names).map_err(|e| JsError::new(&e.to_string()))?;
+    let names = strings_from_js(&file_names, "fileNames")?;
+    let layout = dataset::detect_layout(&names)?;
     if !index_texts.is_object() {
         return Err(JsError::new(
             "indexTexts must be an object mapping each index file name to its text",
@@ -76,8 +76,7 @@ pub fn parse_sequence(
         // Absent: parse_sequence reports a missing index file by name (a
         // missing 7-Scenes pose file only leaves its frame without ground truth).
     }
-    let seq = dataset::parse_sequence(&layout, &names, &texts, name_hint.as_deref())
-        .map_err(|e| JsError::new(&e.to_string()))?;
+    let seq = dataset::parse_sequence(&layout, &names, &texts, name_hint.as_deref())?;
 
     let frames: Array = seq
         .frames
@@ -134,22 +133,8 @@ pub fn ate_tum(
     #[wasm_bindgen(js_name = "groundTruthTum")] ground_truth_tum: &str,
     #[wasm_bindgen(js_name = "maxDt")] max_dt: Option<f64>,
 ) -> Result<JsValue, JsError> {
-    let max_dt = max_dt.unwrap_or(0.02);
-    if !(max_dt.is_finite() && max_dt >= 0.0) {
-        return Err(JsError::new(&format!(
-            "maxDt must be a non-negative number of seconds, got {max_dt}"
-        )));
-    }
-    let estimate = parse_tum(estimate_tum, "estimate").map_err(|e| JsError::new(&e.to_string()))?;
-    let truth =
-        parse_tum(ground_truth_tum, "ground truth").map_err(|e| JsError::new(&e.to_string()))?;
-    let r = eval::ate(&estimate, &truth, max_dt).map_err(|e| JsError::new(&e.to_string()))?;
-    Ok(object(&[
-        ("rmse", r.rmse_m.into()),
-        ("mean", r.mean_m.into()),
-        ("median", r.median_m.into()),
-        ("max", r.max_m.into()),
-        ("pairs", (r.pairs as f64).into()),
-    ])
-    .into())
+    let max_dt = max_dt_from_js(max_dt)?;
+    let estimate = parse_tum(estimate_tum, "estimate")?;
+    let truth = parse_tum(ground_truth_tum, "ground truth")?;
+    Ok(ate_to_js(&eval::ate(&estimate, &truth, max_dt)?))
 }

@@ -50,7 +50,7 @@ impl OpticalFlow {
         if let Some(n) = max_corners {
             config.max_corners = n as usize;
         }
-        let flow = Flow::new(config).map_err(|e| JsError::new(&e.to_string()))?;
+        let flow = Flow::new(config)?;
         Ok(Self {
             flow,
             first: Vec::new(),
@@ -64,8 +64,7 @@ impl OpticalFlow {
     /// empty for the first image or after a size change. Throws on bad bytes.
     #[wasm_bindgen(js_name = pushPng)]
     pub fn push_png(&mut self, colour: &[u8]) -> Result<Float32Array, JsError> {
-        let (w, h, rgb) =
-            crate::frame::decode_colour(colour).map_err(|e| JsError::new(&e.to_string()))?;
+        let (w, h, rgb) = crate::frame::decode_colour(colour)?;
         self.push_pixels(w, h, &rgb)
     }
 
@@ -108,10 +107,7 @@ impl OpticalFlow {
             .ok_or_else(|| JsError::new("image size overflows"))?;
         grey_into(first, count, &mut self.first)?;
         grey_into(second, count, &mut self.second)?;
-        let tracks = self
-            .flow
-            .track(&self.first, &self.second, w, h)
-            .map_err(|e| JsError::new(&e.to_string()))?;
+        let tracks = self.flow.track(&self.first, &self.second, w, h)?;
         Ok(flatten(tracks))
     }
 }
@@ -130,10 +126,7 @@ impl OpticalFlow {
         if previous != (w, h) {
             return Ok(Float32Array::new_with_length(0));
         }
-        let tracks = self
-            .flow
-            .track(&self.first, &self.second, w, h)
-            .map_err(|e| JsError::new(&e.to_string()))?;
+        let tracks = self.flow.track(&self.first, &self.second, w, h)?;
         Ok(flatten(tracks))
     }
 }

@@ -82,9 +82,7 @@ fn parse_options(options: &JsValue, stable: f32) -> Result<(MeshFormat, MeshConf
             }
         }
     }
-    config
-        .validate()
-        .map_err(|e| JsError::new(&e.to_string()))?;
+    config.validate()?;
     Ok((format, config))
 }
 
@@ -109,9 +107,7 @@ fn mesh_to_bytes(
                 let _ = p.call1(&JsValue::NULL, &JsValue::from_f64(f64::from(f)));
             }
         };
-        mesher
-            .mesh_into(map, config, mesh, &mut report)
-            .map_err(|e| JsError::new(&e.to_string()))?;
+        mesher.mesh_into(map, config, mesh, &mut report)?;
         Ok(write_mesh(mesh, format))
     })
 }
@@ -158,7 +154,7 @@ pub fn mesh_surfel_ply(
     #[wasm_bindgen(unchecked_param_type = "MeshOptions | undefined")] options: JsValue,
     progress: Option<Function>,
 ) -> Result<Vec<u8>, JsError> {
-    let map = read_surfel_ply(ply).map_err(|e| JsError::new(&e.to_string()))?;
+    let map = read_surfel_ply(ply)?;
     let stable = crate::fusion::FusionConfig::default().stable_confidence;
     let (format, config) = parse_options(&options, stable)?;
     mesh_to_bytes(&map, format, &config, progress.as_ref())

@@ -8,14 +8,16 @@
 //! - [`dataset`]: `detectLayout`, `parseSequence`, `ateTum` (the CLI's parsers).
 //! - [`archive`]: the `ArchiveReader` class (datasets in .zip / .tar / .tar.gz).
 //! - [`flow`]: the `OpticalFlow` class (Lucas-Kanade tracks for the page's overlay).
-//! - [`convert`]: JS object <-> config / report conversions, with errors that
-//!   name the offending field.
+//! - [`config`]: the config object of `new Slam(config)`, one table of keys.
+//! - [`convert`]: report / preset / dataset conversions to JS objects, and
+//!   the error for JS arguments of the wrong shape.
 //!
 //! Errors are `JsError`s carrying the library error's `Display` message; a
 //! panic would be a bug, and the panic hook installed at start makes it at
 //! least readable in the console.
 
 pub mod archive;
+pub mod config;
 pub mod convert;
 pub mod dataset;
 pub mod flow;

@@ -9,9 +9,14 @@ use glam::Vec3;
 use js_sys::{Array, Float32Array, Uint8Array};
 use wasm_bindgen::prelude::*;
 
-use super::convert::{report_to_js, slam_config_from_js};
-use crate::dataset::{ply::write_ply, trajectory::format_tum};
-use crate::pipeline::{Pipeline, PipelineError};
+use super::config::slam_config_from_js;
+use super::convert::{ate_to_js, max_dt_from_js, report_to_js};
+use crate::dataset::{
+    ply::write_ply,
+    trajectory::{format_tum, parse_tum},
+};
+use crate::eval;
+use crate::pipeline::Pipeline;
 
 /// Dense RGB-D SLAM: camera trajectory and surfel map from RGB-D frames.
 #[wasm_bindgen]
@@ -20,10 +25,6 @@ pub struct Slam {
     pipeline: Pipeline,
     /// Reused by `depthPreview`.
     preview: Vec<f32>,
-}
-
-fn js_error(e: &PipelineError) -> JsError {
-    JsError::new(&e.to_string())
 }
 
 // `Vec3` is `#[repr(C)] { x, y, z: f32 }`: a `[Vec3]` is a `[f32]` three times
@@ -73,8 +74,8 @@ impl Slam {
     pub fn new(
         #[wasm_bindgen(unchecked_param_type = "SlamConfig | string")] config: JsValue,
     ) -> Result<Slam, JsError> {
-        let cfg = slam_config_from_js(&config).map_err(|m| JsError::new(&m))?;
-        let pipeline = Pipeline::new(cfg).map_err(|e| js_error(&e))?;
+        let cfg = slam_config_from_js(&config)?;
+        let pipeline = Pipeline::new(cfg)?;
         Ok(Slam {
             pipeline,
             preview: Vec::new(),
@@ -90,10 +91,7 @@ impl Slam {
         depth: &[u8],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
-        let report = self
-            .pipeline
-            .push_png(colour, depth, timestamp)
-            .map_err(|e| js_error(&e))?;
+        let report = self.pipeline.push_png(colour, depth, timestamp)?;
         Ok(report_to_js(&report))
     }
 
@@ -112,10 +110,13 @@ impl Slam {
         #[wasm_bindgen(js_name = "depthPng")] depth_png: &[u8],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
-        let report = self
-            .pipeline
-            .push_pixels_and_depth_png(width as usize, height as usize, rgba, depth_png, timestamp)
-            .map_err(|e| js_error(&e))?;
+        let report = self.pipeline.push_pixels_and_depth_png(
+            width as usize,
+            height as usize,
+            rgba,
+            depth_png,
+            timestamp,
+        )?;
         Ok(report_to_js(&report))
     }
 
@@ -131,10 +132,9 @@ impl Slam {
         depth: &[u16],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
-        let report = self
-            .pipeline
-            .push_raw(width as usize, height as usize, rgba, depth, timestamp)
-            .map_err(|e| js_error(&e))?;
+        let report =
+            self.pipeline
+                .push_raw(width as usize, height as usize, rgba, depth, timestamp)?;
         Ok(report_to_js(&report))
     }
 
@@ -233,6 +233,28 @@ impl Slam {
     #[must_use]
     pub fn trajectory_tum(&self) -> String {
         format_tum(self.pipeline.trajectory())
+    }
+
+    /// Absolute trajectory error of the trajectory so far against
+    /// `groundTruthTum` (TUM text, e.g. `parseSequence(...).groundTruthTum`)
+    /// after rigid alignment, metres: `{ rmse, mean, median, max, pairs }`.
+    /// Poses match by nearest timestamp within `maxDt` (default 0.02 s).
+    /// The same as `ateTum(slam.trajectoryTum(), groundTruthTum, maxDt)`
+    /// without writing and re-reading the trajectory as text. Throws on bad
+    /// ground truth text or when too few poses match yet.
+    #[wasm_bindgen(unchecked_return_type = "Ate")]
+    pub fn ate(
+        &self,
+        #[wasm_bindgen(js_name = "groundTruthTum")] ground_truth_tum: &str,
+        #[wasm_bindgen(js_name = "maxDt")] max_dt: Option<f64>,
+    ) -> Result<JsValue, JsError> {
+        let max_dt = max_dt_from_js(max_dt)?;
+        let truth = parse_tum(ground_truth_tum, "ground truth")?;
+        Ok(ate_to_js(&eval::ate(
+            self.pipeline.trajectory(),
+            &truth,
+            max_dt,
+        )?))
     }
 
     /// The surfel map as a binary little-endian PLY file.
