@@ -218,16 +218,18 @@ fn far_walls_with_structured_light_noise() {
         &truth,
     );
     assert!(reference.fused == reference.frames, "{}", reference.counts);
+    // The noise-free run is exact to a few hundredths of a millimetre, so
+    // "a small factor" of it is read as: at most 5x it or 2.5 mm.
     assert!(
-        weighted.worst_fused_m <= 0.05,
-        "weighted: a fused frame is {:.1} cm wrong",
-        weighted.worst_fused_m * 100.0
-    );
-    assert!(
-        weighted.ate_m <= 5.0 * reference.ate_m.max(0.002),
+        weighted.ate_m <= (5.0 * reference.ate_m).max(0.0025),
         "weighted ATE {:.3} cm against {:.3} cm without noise",
         weighted.ate_m * 100.0,
         reference.ate_m * 100.0
+    );
+    assert!(
+        weighted.worst_fused_m <= 0.02,
+        "weighted: a fused frame is {:.1} cm wrong",
+        weighted.worst_fused_m * 100.0
     );
     assert!(
         weighted.fused * 10 >= weighted.frames * 9,
@@ -235,7 +237,7 @@ fn far_walls_with_structured_light_noise() {
         weighted.counts
     );
     assert!(
-        unweighted.ate_m > 2.0 * weighted.ate_m || unweighted.worst_fused_m > 0.05,
+        unweighted.ate_m > 3.0 * weighted.ate_m,
         "unweighted ATE {:.3} cm is not worse than weighted {:.3} cm",
         unweighted.ate_m * 100.0,
         weighted.ate_m * 100.0
@@ -285,6 +287,13 @@ fn icl_nuim_with_kinect_noise() {
         "weighted: a fused frame is {:.1} cm wrong",
         weighted.worst_fused_m * 100.0
     );
-    assert!(weighted.ate_m <= 0.015, "weighted ATE {} m", weighted.ate_m);
-    let _ = unweighted;
+    // Measured 0.35 cm weighted, 0.87 cm unweighted (issue 24's goal for
+    // held-out noisy data: 1.5 cm).
+    assert!(weighted.ate_m <= 0.005, "weighted ATE {} m", weighted.ate_m);
+    assert!(
+        unweighted.ate_m > 2.0 * weighted.ate_m,
+        "unweighted ATE {:.3} cm is not worse than weighted {:.3} cm",
+        unweighted.ate_m * 100.0,
+        weighted.ate_m * 100.0
+    );
 }

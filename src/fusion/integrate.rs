@@ -448,7 +448,8 @@ impl<'a> Measure<'a> {
         }
     }
 
-    /// Confidence a merge of pixel `i` adds: the radial weight.
+    /// Confidence a merge or an add of pixel `i` gives: the radial weight
+    /// (the noise weight only sets the merge's share, see `FusionConfig::noise`).
     fn gain(&self, i: usize) -> f32 {
         let w = self.view.k.width;
         self.weight_u[i % w] * self.weight_v[i / w]
@@ -479,10 +480,10 @@ impl<'a> Measure<'a> {
 /// measurement): the inverse variance of its deviation along its normal
 /// ([`SensorNoise::along_normal_m`](crate::noise::SensorNoise::along_normal_m)),
 /// times `edge_factor^2` less at depth edges, relative to the model's
-/// reference and clamped to `min_noise_weight..=1`. It is both the
-/// measurement's confidence gain and its share in a merge, so far, oblique
-/// and edge pixels move a surfel seen better before by little, while a
-/// surface seen only from far still gains confidence and is kept.
+/// reference and clamped to `min_noise_weight..=1`. It is the
+/// measurement's share in a merge, so far, oblique and edge pixels move a
+/// surfel seen better before by little; the confidence a merge adds is the
+/// radial weight alone (see `FusionConfig::noise`).
 fn noise_weights_into(
     level0: &PyramidLevel,
     k: &Intrinsics,
