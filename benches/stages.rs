@@ -147,7 +147,16 @@ fn stages(c: &mut Criterion) {
     let gates = f.config.tracker.gates;
     for (level, target) in pyramid.levels.iter().enumerate() {
         c.bench_function(&format!("icp iteration level {level}"), |b| {
-            b.iter(|| icp_step(&prediction, 1 << level, target, &camera_from_world, &gates));
+            b.iter(|| {
+                icp_step(
+                    &prediction,
+                    1 << level,
+                    target,
+                    &camera_from_world,
+                    &gates,
+                    None,
+                )
+            });
         });
     }
 

@@ -72,9 +72,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let t0 = Instant::now();
         let mut m = 0;
         for _ in 0..reps {
-            m = icp_step(&prediction, 1 << level, target, &t, &config.tracker.gates)
-                .system
-                .count;
+            m = icp_step(
+                &prediction,
+                1 << level,
+                target,
+                &t,
+                &config.tracker.gates,
+                None,
+            )
+            .system
+            .count;
         }
         let icp_ms = t0.elapsed().as_secs_f64() * 1e3 / f64::from(reps);
         println!(

@@ -5,7 +5,8 @@
 //! `SURFEL_VERDICT_DETAILS=1` prints every frame's checks with its true
 //! error (how the thresholds in `track::verify` were measured);
 //! `SURFEL_SPARSE_ALWAYS=1` runs the sparse estimate on every frame;
-//! `SURFEL_CONSTANT_VELOCITY=1` (or `0`) turns the constant-velocity start on (off).
+//! `SURFEL_CONSTANT_VELOCITY=1` (or `0`) turns the constant-velocity start on (off);
+//! `SURFEL_NOISE=uniform` (or another `SensorNoise` name) replaces the preset's noise model.
 
 mod common;
 
@@ -53,6 +54,11 @@ fn run(
 ) -> Run {
     let mut config = config.clone();
     config.tracker.verify.sparse_always = env("SURFEL_SPARSE_ALWAYS");
+    if let Ok(name) = std::env::var("SURFEL_NOISE") {
+        config.set_noise(
+            surfel_slam::SensorNoise::from_name(&name).expect("SURFEL_NOISE names a model"),
+        );
+    }
     if let Ok(v) = std::env::var("SURFEL_CONSTANT_VELOCITY") {
         config.tracker.verify.constant_velocity = v == "1";
     }

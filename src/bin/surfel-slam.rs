@@ -24,7 +24,7 @@ use surfel_slam::mesh::{
     read_surfel_ply, write_mesh, MeshConfig, MeshFormat, Mesher, TriangleMesh,
 };
 use surfel_slam::track::{TrackerConfig, TrackerMode};
-use surfel_slam::{CameraPreset, Pipeline, SlamConfig, Verdict};
+use surfel_slam::{CameraPreset, Pipeline, SensorNoise, SlamConfig, Verdict};
 
 /// Timestamps of matched poses may differ by this much (seconds; frame numbers match exactly).
 pub(crate) const MAX_DT: f64 = 0.02;
@@ -140,6 +140,16 @@ pub(crate) struct TrackingArgs {
         value_parser = non_negative
     )]
     icp_weight: f64,
+    /// Depth noise model weighting tracking and fusion: kinect-v1,
+    /// structured-light, rendered, uniform (no weighting), or coefficients
+    /// `base,quadratic[,offset[,angle[,lateral_px[,edge]]]]` of
+    /// sigma_z = base + quadratic (z - offset)^2 (metres) [default: preset's:
+    /// uniform for tum-fr1/tum-fr2/tum-fr3/7-scenes, rendered icl-nuim].
+    #[arg(long, value_parser = noise_parser)]
+    noise: Option<SensorNoise>,
+    /// Experiments: smallest noise weight of a fused measurement.
+    #[arg(long, hide = true)]
+    min_noise_weight: Option<f32>,
 }
 
 impl TrackingArgs {
@@ -148,6 +158,48 @@ impl TrackingArgs {
         config.fusion.max_surfels = self.max_surfels;
         config.tracker.mode = self.tracker;
         config.tracker.icp_weight = self.icp_weight;
+        if let Some(noise) = self.noise {
+            config.set_noise(noise);
+        }
+        if let Some(w) = self.min_noise_weight {
+            config.fusion.min_noise_weight = w;
+        }
+    }
+}
+
+/// Parses a noise model name or its coefficients (see `--noise`).
+fn noise_parser(s: &str) -> Result<SensorNoise, String> {
+    if let Some(noise) = SensorNoise::from_name(s) {
+        return Ok(noise);
+    }
+    let values: Vec<f32> = s
+        .split(',')
+        .map(|v| v.trim().parse::<f32>().map_err(|e| format!("{v:?}: {e}")))
+        .collect::<Result<_, _>>()
+        .map_err(|e| {
+            format!(
+                "expected one of {} or base,quadratic[,offset,angle,lateral_px,edge]: {e}",
+                SensorNoise::NAMES.join(", ")
+            )
+        })?;
+    if !(2..=6).contains(&values.len()) {
+        return Err(format!(
+            "expected 2 to 6 coefficients, got {}",
+            values.len()
+        ));
+    }
+    let at = |i: usize| values.get(i).copied();
+    let noise = SensorNoise {
+        base_m: values[0],
+        quadratic_per_m: values[1],
+        offset_m: at(2).unwrap_or(0.0),
+        angle_m: at(3).unwrap_or(0.0),
+        lateral_px: at(4).unwrap_or(0.0),
+        edge_factor: at(5).unwrap_or(1.0),
+    };
+    match noise.problem() {
+        Some(problem) => Err(problem),
+        None => Ok(noise),
     }
 }
 

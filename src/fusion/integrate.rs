@@ -66,6 +66,9 @@ pub struct Integrator {
     /// Radial confidence weight per column and per row (it is separable).
     weight_u: Vec<f32>,
     weight_v: Vec<f32>,
+    /// Per pixel: the sensor-noise weight of its measurement (empty when
+    /// the noise model is uniform).
+    weight_noise: Vec<f32>,
 }
 
 /// Per map chunk: whether it is in view, and what its merges did.
@@ -155,7 +158,7 @@ impl Integrator {
         self.reset_frame(&view);
         self.cull(map, &view, config, far_m);
         self.associate(map, &view, config);
-        self.weigh(k, config);
+        self.weigh(&view, config);
         let mut stats = FusionStats {
             merged: self.merge_winners(map, &view, config),
             ..FusionStats::default()
@@ -264,8 +267,10 @@ impl Integrator {
             });
     }
 
-    /// Fills the radial confidence weight per column and per row.
-    fn weigh(&mut self, k: &Intrinsics, config: &FusionConfig) {
+    /// Fills the radial confidence weight per column and per row, and the
+    /// sensor-noise weight per pixel.
+    fn weigh(&mut self, view: &FrameView<'_>, config: &FusionConfig) {
+        let k = view.k;
         // gamma^2 = ((u - cx)^2 + (v - cy)^2) / |c|^2, so the weight
         // exp(-gamma^2 / (2 sigma^2)) is a product of a column and a row factor.
         let scale =
@@ -277,6 +282,10 @@ impl Integrator {
         self.weight_v.clear();
         self.weight_v
             .extend((0..k.height).map(|v| radial(v as f32 - k.cy)));
+        self.weight_noise.clear();
+        if !config.noise.is_uniform() {
+            noise_weights_into(view.level0, k, config, &mut self.weight_noise);
+        }
     }
 
     /// Merges each pixel's winning surfel with the pixel's measurement (in
@@ -290,7 +299,11 @@ impl Integrator {
         view: &FrameView<'_>,
         config: &FusionConfig,
     ) -> usize {
-        let measure = Measure::new(view, &self.weight_u, &self.weight_v, config);
+        let measure = Measure::new(
+            view,
+            (&self.weight_u, &self.weight_v, &self.weight_noise),
+            config,
+        );
         let (best, pixels, visible) = (&self.best, &self.pixels, &self.visible);
         map.for_each_chunk_mut(&mut self.chunks, |mut chunk, update| {
             if !update.visible {
@@ -313,7 +326,12 @@ impl Integrator {
                 if config.is_settled(chunk.confidences[local]) {
                     continue;
                 }
-                let p = merge(&mut chunk, local, &measure.surfel(pixel as usize));
+                let p = merge(
+                    &mut chunk,
+                    local,
+                    &measure.surfel(pixel as usize),
+                    measure.gain(pixel as usize),
+                );
                 let block = local / BLOCK;
                 update.min[block] = update.min[block].min(p);
                 update.max[block] = update.max[block].max(p);
@@ -344,7 +362,11 @@ impl Integrator {
         config: &FusionConfig,
         stats: &mut FusionStats,
     ) {
-        let measure = Measure::new(view, &self.weight_u, &self.weight_v, config);
+        let measure = Measure::new(
+            view,
+            (&self.weight_u, &self.weight_v, &self.weight_noise),
+            config,
+        );
         let cos_gate = config.normal_gate_deg.to_radians().cos();
         let (level0, best) = (view.level0, &self.best);
         let (w, h) = (view.k.width, view.k.height);
@@ -391,7 +413,7 @@ impl Integrator {
                 m.normal,
                 m.colour,
                 m.radius,
-                m.confidence,
+                measure.gain(i),
                 view.frame,
             );
             stats.added += 1;
@@ -404,6 +426,8 @@ struct Measure<'a> {
     view: &'a FrameView<'a>,
     weight_u: &'a [f32],
     weight_v: &'a [f32],
+    /// Per pixel noise weight, or empty (all 1).
+    weight_noise: &'a [f32],
     focal: f32,
     max_radius_m: f32,
 }
@@ -411,17 +435,24 @@ struct Measure<'a> {
 impl<'a> Measure<'a> {
     fn new(
         view: &'a FrameView<'a>,
-        weight_u: &'a [f32],
-        weight_v: &'a [f32],
+        (weight_u, weight_v, weight_noise): (&'a [f32], &'a [f32], &'a [f32]),
         config: &FusionConfig,
     ) -> Self {
         Self {
             view,
             weight_u,
             weight_v,
+            weight_noise,
             focal: view.k.focal_abs(),
             max_radius_m: config.max_radius_m,
         }
+    }
+
+    /// Confidence a merge or an add of pixel `i` gives: the radial weight
+    /// (the noise weight only sets the merge's share, see `FusionConfig::noise`).
+    fn gain(&self, i: usize) -> f32 {
+        let w = self.view.k.width;
+        self.weight_u[i % w] * self.weight_v[i / w]
     }
 
     /// The surfel pixel `i` (row-major) measures: world frame, metres, with
@@ -438,9 +469,74 @@ impl<'a> Measure<'a> {
             normal: self.view.world_from_camera.vector(n_cam),
             colour: [c[0], c[1], c[2], 255],
             radius,
-            confidence: self.weight_u[i % w] * self.weight_v[i / w],
+            confidence: self.weight_u[i % w]
+                * self.weight_v[i / w]
+                * self.weight_noise.get(i).copied().unwrap_or(1.0),
         }
     }
+}
+
+/// Sensor-noise weight of every pixel of `level0` (0 where no
+/// measurement): the inverse variance of its deviation along its normal
+/// ([`SensorNoise::along_normal_m`](crate::noise::SensorNoise::along_normal_m)),
+/// times `edge_factor^2` less at depth edges, relative to the model's
+/// reference and clamped to `min_noise_weight..=1`. It is the
+/// measurement's share in a merge, so far, oblique and edge pixels move a
+/// surfel seen better before by little; the confidence a merge adds is the
+/// radial weight alone (see `FusionConfig::noise`).
+fn noise_weights_into(
+    level0: &PyramidLevel,
+    k: &Intrinsics,
+    config: &FusionConfig,
+    out: &mut Vec<f32>,
+) {
+    let (w, h) = (k.width, k.height);
+    let noise = &config.noise;
+    let focal = k.focal_abs();
+    let floor = config.min_noise_weight.clamp(0.0, 1.0);
+    let edge_weight = 1.0 / (noise.edge_factor * noise.edge_factor).max(1.0);
+    out.resize(w * h, 0.0);
+    if level0.vertices.len() != w * h || level0.normals.len() != w * h {
+        return;
+    }
+    let vertices = &level0.vertices;
+    out.par_chunks_mut(w).enumerate().for_each(|(v, row)| {
+        for (u, weight) in row.iter_mut().enumerate() {
+            let i = v * w + u;
+            let p = vertices[i];
+            let n = level0.normals[i];
+            if p.z <= 0.0 || n == Vec3::ZERO {
+                *weight = 0.0;
+                continue;
+            }
+            let cos_ray = n.dot(p) / p.length();
+            let sigma = noise.along_normal_m(p.z, cos_ray, focal);
+            let mut weight_here = noise.weight(sigma);
+            if edge_weight < 1.0 && is_depth_edge(vertices, (u, v), (w, h)) {
+                weight_here *= edge_weight;
+            }
+            *weight = weight_here.clamp(floor, 1.0);
+        }
+    });
+}
+
+/// Relative depth jump between 4-neighbours that makes a depth edge.
+const EDGE_JUMP: f32 = 0.04;
+
+/// Whether pixel `(u, v)` has a 4-neighbour without depth or more than
+/// `EDGE_JUMP` of its depth nearer or farther.
+fn is_depth_edge(vertices: &[Vec3], (u, v): (usize, usize), (w, h): (usize, usize)) -> bool {
+    let i = v * w + u;
+    let z = vertices[i].z;
+    let limit = EDGE_JUMP * z;
+    let jump = |j: usize| {
+        let zn = vertices[j].z;
+        zn <= 0.0 || (zn - z).abs() > limit
+    };
+    (u > 0 && jump(i - 1))
+        || (u + 1 < w && jump(i + 1))
+        || (v > 0 && jump(i - w))
+        || (v + 1 < h && jump(i + w))
 }
 
 /// Merges every candidate that lost its pixel to a more confident
@@ -529,8 +625,10 @@ fn covered_by_neighbour(
 }
 
 /// Merges measurement `m` into surfel `local` of `chunk`; returns its new position.
-fn merge(chunk: &mut ChunkMut<'_>, local: usize, m: &Surfel) -> Vec3 {
-    let merged = chunk.surfel(local).merged_with(m);
+fn merge(chunk: &mut ChunkMut<'_>, local: usize, m: &Surfel, gain: f32) -> Vec3 {
+    let old = chunk.surfel(local);
+    let mut merged = old.merged_with(m);
+    merged.confidence = old.confidence + gain;
     chunk.set_surfel(local, &merged);
     // Not marked changed: a merge refines a surfel by less than the sensor
     // noise; renderers refresh merged data in the background (see

@@ -10,7 +10,8 @@
 //! with intrinsics, what [`icp_step`] aligns against), and the active
 //! prediction is the source. The estimate `T` (camera_from_world) starts at
 //! the inverse of that pose, so the correction `world_from_camera * T` is
-//! the identity when the two models already coincide.
+//! the identity when the two models already coincide. Both sides are fused
+//! surfels, not raw depth: the residuals are not weighted by sensor noise.
 
 use crate::fusion::Prediction;
 use crate::preprocess::PyramidLevel;
@@ -202,6 +203,7 @@ impl ModelRegistration {
             &self.target,
             &RigidF32::from_affine(&camera_from_world),
             &config.gates,
+            None,
         );
         let start_residual_rms_m = (start.system.cost / start.system.count.max(1) as f64).sqrt();
         // Coarse to fine on the source grid: the target stays full resolution.
@@ -209,7 +211,7 @@ impl ModelRegistration {
             let stride = 1usize << level;
             for _ in 0..iterations {
                 let t = RigidF32::from_affine(&camera_from_world);
-                let step = icp_step(active, stride, &self.target, &t, &config.gates);
+                let step = icp_step(active, stride, &self.target, &t, &config.gates, None);
                 if step.system.count < 6 {
                     break;
                 }
@@ -227,7 +229,7 @@ impl ModelRegistration {
             return Registration::rejected(Rejection::Degenerate, overlap);
         }
         let t = RigidF32::from_affine(&camera_from_world);
-        let last = icp_step(active, 1, &self.target, &t, &config.gates);
+        let last = icp_step(active, 1, &self.target, &t, &config.gates, None);
         let system = &last.system;
         let inliers = system.count;
         let mut result = Registration {

@@ -5,6 +5,7 @@ use crate::frame::{DepthSettings, FrameError};
 use crate::fusion::FusionConfig;
 use crate::loop_closure::relocalise::RelocaliseConfig;
 use crate::loop_closure::LoopClosureConfig;
+use crate::noise::SensorNoise;
 use crate::preprocess::PreprocessConfig;
 use crate::track::TrackerConfig;
 use thiserror::Error;
@@ -40,11 +41,24 @@ impl SlamConfig {
             half_resolution: false,
             depth: preset.depth_settings(),
             preprocess: PreprocessConfig::default(),
-            tracker: TrackerConfig::default(),
-            fusion: FusionConfig::default(),
+            tracker: TrackerConfig {
+                noise: preset.sensor_noise(),
+                ..TrackerConfig::default()
+            },
+            fusion: FusionConfig {
+                noise: preset.sensor_noise(),
+                ..FusionConfig::default()
+            },
             relocalise: RelocaliseConfig::default(),
             loop_closure: LoopClosureConfig::default(),
         }
+    }
+
+    /// Sets the sensor's depth noise model, which weights both tracking and
+    /// fusion ([`SensorNoise::uniform`] turns the weighting off).
+    pub fn set_noise(&mut self, noise: SensorNoise) {
+        self.tracker.noise = noise;
+        self.fusion.noise = noise;
     }
 
     /// Intrinsics of the images tracked and fused (halved with `half_resolution`).
@@ -84,6 +98,11 @@ impl SlamConfig {
             return Err(intrinsics_error(problem));
         }
         self.depth.validate()?;
+        for noise in [&self.tracker.noise, &self.fusion.noise] {
+            if let Some(problem) = noise.problem() {
+                return Err(PipelineError::InvalidConfig(problem));
+            }
+        }
         if self.tracker.iterations.len() < levels {
             return Err(PipelineError::InvalidConfig(format!(
                 "tracker needs iterations for {levels} levels, got {:?}",

@@ -37,7 +37,7 @@ mod trajectory;
 
 pub use loop_path::loop_pose;
 pub use map_error::{map_error, MapError};
-pub use noise::NoiseModel;
+pub use noise::{NoiseModel, StructuredLight};
 pub use render::{render, render_into, RenderedFrame, SyntheticError, DEPTH_UNITS_PER_METRE};
 pub use scene::{Scene, SceneBox, ROOM_MAX, ROOM_MIN};
 pub use trajectory::{default_intrinsics, look_at, trajectory, trajectory_pose};

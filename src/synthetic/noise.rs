@@ -1,7 +1,10 @@
-//! Sensor noise: the [`NoiseModel`] parameters, the deterministic SplitMix64
+//! Sensor noise: the [`NoiseModel`] parameters, the [`StructuredLight`]
+//! depth simulation, the deterministic SplitMix64
 //! stream (uniform and gaussian draws) and depth-edge detection.
 
 use super::texture::sin_turns;
+use crate::camera::Intrinsics;
+use rayon::prelude::*;
 
 /// Sensor noise applied by [`render`](fn@super::render).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,6 +47,84 @@ impl NoiseModel {
 impl Default for NoiseModel {
     fn default() -> Self {
         Self::none()
+    }
+}
+
+/// Structured-light depth noise (Kinect v1-like), applied to an exact
+/// metric depth image: each pixel reads the depth of a neighbour displaced
+/// by gaussian lateral jitter (so depth edges fray), that depth is turned
+/// into a disparity `d = focal * baseline / z` (pixels), gaussian disparity
+/// noise is added and the disparity is quantised, as the sensor's matcher
+/// reports it in steps of a fraction of a pixel.
+///
+/// With `axial_per_m2` the disparity noise is `axial_per_m2 * focal *
+/// baseline` pixels, so that its depth deviation is `axial_per_m2 * z^2`
+/// metres (Khoshelham and Elberink 2012 measured 1.425e-3 for Kinect v1);
+/// quantisation adds steps of `quantum_px * z^2 / (focal * baseline)` metres
+/// (11 cm at 6 m for a 525 px Kinect).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StructuredLight {
+    /// Standard deviation of the lateral jitter, pixels.
+    pub lateral_px: f32,
+    /// Axial noise coefficient: depth deviation `axial_per_m2 * z^2`, metres.
+    pub axial_per_m2: f32,
+    /// Disparity quantisation step, pixels (0 = none).
+    pub quantum_px: f32,
+    /// Projector-camera baseline, metres.
+    pub baseline_m: f32,
+}
+
+impl StructuredLight {
+    /// Kinect v1: 0.5 px lateral jitter, 1.425e-3 z^2 axial, 1/8 px
+    /// disparity steps, 7.5 cm baseline.
+    #[must_use]
+    pub const fn kinect() -> Self {
+        Self {
+            lateral_px: 0.5,
+            axial_per_m2: 1.425e-3,
+            quantum_px: 0.125,
+            baseline_m: 0.075,
+        }
+    }
+
+    /// Writes the noisy version of `depth_m` (metres, 0 = none, row-major,
+    /// `width * height` of `k`) into `out`, deterministically from `seed`.
+    /// A `depth_m` of the wrong length gives an all-zero `out`.
+    pub fn apply_into(&self, depth_m: &[f32], k: &Intrinsics, seed: u64, out: &mut Vec<f32>) {
+        let (w, h) = (k.width, k.height);
+        out.clear();
+        out.resize(depth_m.len(), 0.0);
+        if depth_m.len() != w * h || w == 0 {
+            return;
+        }
+        let lateral = sanitise(self.lateral_px);
+        let fb = k.focal_abs() * sanitise(self.baseline_m);
+        if fb <= 0.0 {
+            out.copy_from_slice(depth_m);
+            return;
+        }
+        let sigma_d = sanitise(self.axial_per_m2) * fb;
+        let quantum = sanitise(self.quantum_px);
+        out.par_chunks_mut(w).enumerate().for_each(|(v, row)| {
+            let mut rng = SplitMix64::new(row_seed(seed, v, 0x57A0_C7ED));
+            for (u, z_out) in row.iter_mut().enumerate() {
+                let (du, dv, gd) = (rng.gaussian(), rng.gaussian(), rng.gaussian());
+                let su = (u as f32 + lateral * du).round();
+                let sv = (v as f32 + lateral * dv).round();
+                let su = su.clamp(0.0, (w - 1) as f32) as usize;
+                let sv = sv.clamp(0.0, (h - 1) as f32) as usize;
+                let z = depth_m[sv * w + su];
+                if !(z > 0.0 && z.is_finite()) {
+                    *z_out = 0.0;
+                    continue;
+                }
+                let mut d = fb / z + sigma_d * gd;
+                if quantum > 0.0 {
+                    d = (d / quantum).round() * quantum;
+                }
+                *z_out = if d > 0.0 { fb / d } else { 0.0 };
+            }
+        });
     }
 }
 
@@ -145,6 +226,38 @@ mod tests {
         );
         render_into(&mut c, &scene, &k, &pose, &NoiseModel::none(), 5);
         assert_eq!(a, c);
+    }
+
+    #[test]
+    fn structured_light_matches_khoshelham() {
+        let k = default_intrinsics();
+        let n = k.pixel_count();
+        let noise = StructuredLight::kinect();
+        for z in [1.0f32, 3.0, 6.0] {
+            let depth = vec![z; n];
+            let mut out = Vec::new();
+            noise.apply_into(&depth, &k, 7, &mut out);
+            let e: Vec<f64> = out.iter().map(|&d| f64::from(d - z)).collect();
+            let mean = e.iter().sum::<f64>() / e.len() as f64;
+            let std = (e.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / e.len() as f64).sqrt();
+            // Disparity noise 1.425e-3 z^2 plus the 1/8 px steps' own
+            // (uniform, step / sqrt(12)) part.
+            let fb = f64::from(k.focal_abs()) * 0.075;
+            let step = 0.125 * f64::from(z * z) / fb;
+            let expected = (1.425e-3f64 * f64::from(z * z)).hypot(step / 12f64.sqrt());
+            assert!(
+                (std / expected - 1.0).abs() < 0.15,
+                "z {z}: {std} vs {expected}"
+            );
+            assert!(mean.abs() < 0.1 * expected + 1e-4, "bias {mean} at {z}");
+            let mut again = Vec::new();
+            noise.apply_into(&depth, &k, 7, &mut again);
+            assert_eq!(out, again);
+        }
+        // A wrong-sized input gives zeros, not a panic.
+        let mut out = Vec::new();
+        noise.apply_into(&[1.0; 3], &k, 1, &mut out);
+        assert_eq!(out, vec![0.0; 3]);
     }
 
     #[test]

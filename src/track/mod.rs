@@ -18,11 +18,12 @@ pub mod rgb;
 pub mod verify;
 
 use crate::fusion::Prediction;
+use crate::noise::SensorNoise;
 use crate::preprocess::FramePyramid;
 use crate::se3;
 use crate::se3::RigidF32;
 use glam::DAffine3;
-use icp::{icp_step, IcpGates};
+use icp::{icp_step, IcpGates, NoiseWeights};
 use rgb::{PhotometricConfig, RgbWorkspace};
 use verify::VerifyConfig;
 
@@ -122,6 +123,10 @@ pub struct TrackerConfig {
     pub sparse_sources: usize,
     /// Correspondence gates and robust weight.
     pub gates: IcpGates,
+    /// Depth noise of the sensor: ICP residuals are divided by their
+    /// predicted deviation (see [`icp`]); uniform = no weighting. Set with
+    /// the fusion's by `SlamConfig::set_noise`.
+    pub noise: SensorNoise,
     /// Stop iterating a level when the step is below this (rad or m).
     pub convergence: f64,
     /// Lost when fewer inliers than this fraction of the source points that projected.
@@ -155,6 +160,7 @@ impl Default for TrackerConfig {
                 normal_gate_deg: 20.0,
                 huber_m: 0.02,
             },
+            noise: SensorNoise::default(),
             convergence: 1e-6,
             min_inlier_ratio: 0.25,
             min_inliers: 1000,
@@ -262,6 +268,18 @@ impl TrackerWorkspace {
     }
 }
 
+/// The noise model with the finest level's focal length, for ICP.
+fn noise_weights<'a>(
+    pyramid: &FramePyramid,
+    config: &'a TrackerConfig,
+) -> Option<NoiseWeights<'a>> {
+    let focal_px = pyramid.levels.first()?.intrinsics?.focal_abs();
+    Some(NoiseWeights {
+        noise: &config.noise,
+        focal_px,
+    })
+}
+
 /// The combined system of one evaluation and its mean cost.
 #[derive(Debug, Clone, Copy, Default)]
 struct Evaluation {
@@ -288,7 +306,8 @@ fn evaluate(
     let t = RigidF32::from_affine(camera_from_world);
     let target = &pyramid.levels[level];
     let mean = |s: &se3::NormalEquations| s.cost / s.count.max(1) as f64;
-    let icp_full = || icp_step(prediction, stride, target, &t, &config.gates);
+    let weights = noise_weights(pyramid, config);
+    let icp_full = || icp_step(prediction, stride, target, &t, &config.gates, weights);
     let dense = |step: &icp::IcpStep| (level == 0 && stride == 1).then_some(*step);
     let rgb = || {
         workspace
@@ -524,12 +543,20 @@ fn track_result(
     let mut last = finest.dense_icp.unwrap_or_default();
     if let (None, Some(finest_level)) = (finest.dense_icp, problem.pyramid.levels.first()) {
         let t = RigidF32::from_affine(camera_from_world);
-        last = icp_step(problem.prediction, 1, finest_level, &t, &config.gates);
+        let weights = noise_weights(problem.pyramid, config);
+        last = icp_step(
+            problem.prediction,
+            1,
+            finest_level,
+            &t,
+            &config.gates,
+            weights,
+        );
     }
     let world_from_camera = camera_from_world.inverse();
     let sys = &last.system;
     let inliers = sys.count;
-    let inlier_ratio = inliers as f64 / last.candidates.max(1) as f64;
+    let inlier_ratio = last.inlier_ratio();
     let residual_rms_m = (sys.cost / inliers.max(1) as f64).sqrt();
     let photometric = &finest.photometric;
     let photometric_rms = 255.0 * (photometric.cost / photometric.count.max(1) as f64).sqrt();

@@ -14,6 +14,7 @@ use wasm_bindgen::prelude::*;
 use super::convert::InputError;
 use crate::camera::CameraPreset;
 use crate::frame::DepthSettings;
+use crate::noise::SensorNoise;
 use crate::pipeline::SlamConfig;
 use crate::track::TrackerMode;
 
@@ -50,6 +51,8 @@ export interface SlamConfig {
   loopClosure?: boolean;
   /** Relocalise a lost camera from the fern keyframes. */
   relocalise?: boolean;
+  /** Depth noise model weighting tracking and fusion (default: the preset's; 'uniform' = no weighting). */
+  noise?: 'kinect-v1' | 'structured-light' | 'rendered' | 'uniform';
 }
 "#;
 
@@ -134,6 +137,7 @@ pub const CONFIG_KEYS: &[ConfigKey] = &[
     ),
     key("tracker", Setter::Custom(set_tracker)),
     key("icpWeight", Setter::Custom(set_icp_weight)),
+    key("noise", Setter::Custom(set_noise)),
     key(
         "stableConfidence",
         Setter::F32(|c, v| c.fusion.stable_confidence = v),
@@ -183,6 +187,18 @@ fn set_tracker(cfg: &mut SlamConfig, v: &JsValue) -> Result<(), String> {
     let name = string("tracker", v)?;
     cfg.tracker.mode = TrackerMode::from_name(&name)
         .ok_or_else(|| format!("config.tracker must be 'icp', 'rgb' or 'joint', got {name:?}"))?;
+    Ok(())
+}
+
+fn set_noise(cfg: &mut SlamConfig, v: &JsValue) -> Result<(), String> {
+    let name = string("noise", v)?;
+    let noise = SensorNoise::from_name(&name).ok_or_else(|| {
+        format!(
+            "config.noise must be one of {}, got {name:?}",
+            SensorNoise::NAMES.map(|n| format!("'{n}'")).join(", ")
+        )
+    })?;
+    cfg.set_noise(noise);
     Ok(())
 }
 
@@ -321,6 +337,8 @@ fn parse(config: &JsValue) -> Result<SlamConfig, String> {
             }
             let mut cfg = SlamConfig::from_preset(CameraPreset::TumFr3);
             cfg.depth = DepthSettings::default();
+            // An unknown camera: the generic structured-light noise model.
+            cfg.set_noise(SensorNoise::default());
             cfg
         }
     };
