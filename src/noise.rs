@@ -176,7 +176,7 @@ impl SensorNoise {
         let s2 = (1.0 - c * c).max(0.0);
         let mut axial = self.axial_m(z);
         if self.angle_m > 0.0 {
-            let theta = c.acos().min(MAX_ANGLE_RAD);
+            let theta = acos_unit(c).min(MAX_ANGLE_RAD);
             let t = theta / (std::f32::consts::FRAC_PI_2 - theta);
             axial += self.angle_m * t * t / z.sqrt();
         }
@@ -219,6 +219,15 @@ impl SensorNoise {
     }
 }
 
+/// `acos(c)` for `c` in `0..=1`, within 7e-5 rad (Abramowitz and Stegun
+/// 4.4.45): the weights run per pixel and per ICP correspondence, where
+/// the library `acos` cost a third of the weighted tracker's time.
+#[inline]
+fn acos_unit(c: f32) -> f32 {
+    let c = c.clamp(0.0, 1.0);
+    (1.0 - c).sqrt() * (1.570_728_8 + c * (-0.212_114_4 + c * (0.074_261 - 0.018_729_3 * c)))
+}
+
 impl Default for SensorNoise {
     /// The structured-light model: most RGB-D cameras with custom
     /// intrinsics are structured-light or stereo, whose noise grows with z^2.
@@ -245,6 +254,14 @@ mod tests {
         assert!(s.along_normal_m(2.0, 0.3, 525.0) > facing);
         assert!((s.weight(s.reference_m()) - 1.0).abs() < 1e-6);
         assert!(s.weight(s.axial_m(4.0)) < 0.01);
+    }
+
+    #[test]
+    fn fast_acos_matches_the_library() {
+        for i in 0..=1000 {
+            let c = i as f32 / 1000.0;
+            assert!((acos_unit(c) - c.acos()).abs() < 1e-4, "{c}");
+        }
     }
 
     #[test]

@@ -298,7 +298,7 @@ fn negative_fy_on_the_command_line_matches_the_icl_preset() {
         (path, a.stdout)
     };
     let (preset, preset_out) = run("preset.txt", &[]);
-    // Another preset, every camera setting given by hand, fy negative.
+    // Another preset, every camera setting (and the noise model) given by hand, fy negative.
     let (explicit, explicit_out) = run(
         "explicit.txt",
         &[
@@ -314,6 +314,8 @@ fn negative_fy_on_the_command_line_matches_the_icl_preset() {
             "239.5",
             "--depth-max",
             "8",
+            "--noise",
+            "structured-light",
         ],
     );
     let text = |p: &Path| std::fs::read_to_string(p).expect("trajectory");

@@ -155,7 +155,7 @@ pub fn ransac_rigid(
             continue;
         };
         let c = count(&t);
-        if best.map_or(true, |(b, _)| c > b) {
+        if best.is_none_or(|(b, _)| c > b) {
             best = Some((c, t));
             let w = c as f64 / n as f64;
             let p_good = w.powi(3);
