@@ -267,6 +267,16 @@ fn closing_the_synthetic_loop_halves_the_drift_and_merges_the_doubled_surfaces()
     assert!(closed_map.rms_m < open_map.rms_m);
     assert!(closed.slam.map().live_len() < open.slam.map().live_len());
     assert!(closed.slam.map().all_finite());
+    // The online trajectory keeps the poses as tracked, as wrong as the
+    // open loop's; the closures bent only the other one.
+    let (online, corrected) = (closed.slam.online_trajectory(), closed.slam.trajectory());
+    assert_eq!(online.len(), corrected.len());
+    let online_ate = ate(online, &closed.truth, 0.01).expect("ate").rmse_m;
+    println!("  online (as tracked) ATE {:.2} cm", online_ate * 100.0);
+    assert!(
+        online_ate > closed_ate,
+        "online {online_ate} m vs corrected {closed_ate} m"
+    );
 }
 
 #[test]
@@ -287,6 +297,8 @@ fn no_closure_without_a_revisit() {
     assert_eq!(accepted, 0);
     assert_eq!(run.reports.last().map(|r| r.loop_closures), Some(0));
     assert!(a.rmse_m < 0.01, "ATE {} m", a.rmse_m);
+    // Nothing bent: the online trajectory is the trajectory.
+    assert_eq!(run.slam.online_trajectory(), run.slam.trajectory());
 }
 
 #[test]

@@ -305,6 +305,12 @@ fn check(slam: &Pipeline, model: &Model, at: &dyn Fn(&str) -> String) {
     assert!(c.lost_streak <= c.lost, "{}", at("lost streak"));
     let trajectory = slam.trajectory();
     assert_eq!(trajectory.len(), frames, "{}", at("trajectory length"));
+    assert_eq!(
+        slam.online_trajectory().len(),
+        frames,
+        "{}",
+        at("online trajectory length")
+    );
     assert!(
         trajectory
             .iter()

@@ -127,7 +127,9 @@ const settings = new CameraSettings(
     cy: $('cy'),
     depthScale: ui.depthScale,
     tracker: $('tracker'),
+    noise: $('noise'),
     half: $('half-resolution'),
+    loopClosure: $('loop-closure'),
     apply: $('apply-intrinsics'),
   },
   {

@@ -1,10 +1,10 @@
 // The panel's camera and tracker settings: the preset list, the intrinsics
-// fields, the tracker and half-resolution choices, and the Slam config they
+// fields, the tracker, noise model, half-resolution and loop-closure choices, and the Slam config they
 // make (docs/js-api.md, "Config keys"). Used by app.js.
 
 export class CameraSettings {
   /**
-   * `el`: {preset, fx, fy, cx, cy, depthScale, tracker, half, apply} elements;
+   * `el`: {preset, fx, fy, cx, cy, depthScale, tracker, noise, half, loopClosure, apply} elements;
    * `views`: the input views (their depth colour range follows the preset);
    * `onApply(config)`: the settings changed while a sequence is open;
    * `onError(text)`: the fields do not make a config.
@@ -30,7 +30,7 @@ export class CameraSettings {
       });
     }
     el.apply.addEventListener('click', apply);
-    for (const choice of [el.tracker, el.half]) {
+    for (const choice of [el.tracker, el.noise, el.half, el.loopClosure]) {
       choice.addEventListener('change', () => {
         if (hasSequence()) apply();
       });
@@ -76,13 +76,15 @@ export class CameraSettings {
       cx: num(el.cx, base.cx),
       cy: num(el.cy, base.cy),
       depthScale: num(el.depthScale, base.depthScale),
-      tracker: el.tracker.value,
-      halfResolution: el.half.checked,
+      ...this.pageOptions(),
     };
   }
 
   /** The choices on the page that a newly opened sequence keeps. */
   pageOptions() {
-    return { tracker: this.el.tracker.value, halfResolution: this.el.half.checked };
+    const el = this.el;
+    // No noise key: the preset's own model.
+    const noise = el.noise.value ? { noise: el.noise.value } : {};
+    return { tracker: el.tracker.value, halfResolution: el.half.checked, loopClosure: el.loopClosure.checked, ...noise };
   }
 }

@@ -5,7 +5,7 @@
 
 /** Page -> SLAM worker (`{type, ...fields}`). */
 export const ToWorker = Object.freeze({
-  /** {name, entries: [[path, File|url]], autoplay, options: {tracker, halfResolution}}: open a sequence. */
+  /** {name, entries: [[path, File|url]], autoplay, options: {tracker, halfResolution, noise?, loopClosure}}: open a sequence. */
   LOAD: 'load',
   /** Play from the next frame (from frame 0 when the sequence is done). */
   PLAY: 'play',

@@ -211,8 +211,8 @@ async function load({ name, entries, autoplay, options }) {
   if (parsed.preset && typeof parsed.preset === 'object') Object.assign(newConfig, parsed.preset);
   delete newConfig.name;
   newConfig.preset = preset;
-  // The page's own choices (tracker, half resolution) carry over to a new sequence.
-  for (const key of ['tracker', 'halfResolution']) if (options?.[key] !== undefined) newConfig[key] = options[key];
+  // The page's own choices carry over to a new sequence.
+  for (const key of ['tracker', 'halfResolution', 'noise', 'loopClosure']) if (options?.[key] !== undefined) newConfig[key] = options[key];
   try {
     createSlam(newConfig);
   } catch (e) {

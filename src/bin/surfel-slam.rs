@@ -62,6 +62,10 @@ struct RunArgs {
     /// Write the estimated trajectory here (TUM format, world_from_camera).
     #[arg(long)]
     trajectory: Option<PathBuf>,
+    /// Also write the online trajectory here: each pose as tracked, before
+    /// loop closures corrected it (TUM format, world_from_camera).
+    #[arg(long)]
+    online_trajectory: Option<PathBuf>,
     /// Write the surfel map here (binary PLY).
     #[arg(long)]
     ply: Option<PathBuf>,
@@ -487,9 +491,14 @@ fn run(args: &RunArgs) -> Result<u8> {
     }
     bar.finish_and_clear();
 
-    if let Some(path) = &args.trajectory {
-        std::fs::write(path, trajectory::format_tum(slam.trajectory()))
-            .with_context(|| format!("writing {}", path.display()))?;
+    for (path, poses) in [
+        (&args.trajectory, slam.trajectory()),
+        (&args.online_trajectory, slam.online_trajectory()),
+    ] {
+        if let Some(path) = path {
+            std::fs::write(path, trajectory::format_tum(poses))
+                .with_context(|| format!("writing {}", path.display()))?;
+        }
     }
     if let Some(path) = &args.ply {
         std::fs::write(path, write_ply(slam.map()))

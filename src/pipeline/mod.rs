@@ -52,6 +52,8 @@ pub struct Pipeline {
     order: SpatialOrder,
     tracker: TrackerWorkspace,
     trajectory: Vec<(f64, DAffine3)>,
+    /// Each frame's pose as tracked, before any loop closure moved it.
+    online_trajectory: Vec<(f64, DAffine3)>,
     last_good: Option<DAffine3>,
     frame_index: u32,
     counts: VerdictCounts,
@@ -94,6 +96,7 @@ impl Pipeline {
             order: SpatialOrder::default(),
             tracker: TrackerWorkspace::default(),
             trajectory: Vec::new(),
+            online_trajectory: Vec::new(),
             last_good: None,
             frame_index: 0,
             counts: VerdictCounts::default(),
@@ -116,6 +119,14 @@ impl Pipeline {
     #[must_use]
     pub fn trajectory(&self) -> &[(f64, DAffine3)] {
         &self.trajectory
+    }
+
+    /// `(timestamp, world_from_camera)` of every frame pushed so far as it
+    /// was tracked (online): loop closures bend [`Self::trajectory`], not
+    /// this one. The two are equal until the first closure.
+    #[must_use]
+    pub fn online_trajectory(&self) -> &[(f64, DAffine3)] {
+        &self.online_trajectory
     }
 
     /// Surfel slots filled by new surfels or by surfels moved by a cleanup
@@ -163,6 +174,7 @@ impl Pipeline {
         // read past the new one's end.
         self.order.clear();
         self.trajectory.clear();
+        self.online_trajectory.clear();
         self.last_good = None;
         self.sparse.clear();
         self.relocaliser.clear();
@@ -200,6 +212,7 @@ impl Pipeline {
         self.preprocess(frame);
         let t1 = now_ms();
         let mut tracked = self.track();
+        let as_tracked = tracked.pose;
         let t2 = now_ms();
         let mut fusion = FusionStats::default();
         let mut closure = LoopOutcome::default();
@@ -216,6 +229,7 @@ impl Pipeline {
         let t4 = now_ms();
         self.count_verdict(tracked.verdict);
         self.trajectory.push((timestamp, tracked.pose));
+        self.online_trajectory.push((timestamp, as_tracked));
         self.frame_index += 1;
         let timings = StageTimings {
             decode_ms: 0.0,

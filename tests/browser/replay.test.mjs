@@ -179,6 +179,12 @@ test('a module failure stops playback, keeps the downloads, and the next Play ru
     await page.locator('#tracker').selectOption('joint');
     s = await waitForStatus(page, (x) => x.playing && x.framesProcessed >= 2, { timeoutMs: 60_000 });
     assert.ok(s.playing, 'a tracker change restarts and plays');
+    await page.locator('#noise').selectOption('kinect-v1');
+    s = await waitForStatus(page, (x) => x.playing && x.framesProcessed >= 2, { timeoutMs: 60_000 });
+    assert.ok(s.playing, 'a noise model change restarts and plays');
+    await page.locator('#loop-closure').uncheck();
+    s = await waitForStatus(page, (x) => x.playing && x.framesProcessed >= 2, { timeoutMs: 60_000 });
+    assert.ok(s.playing, 'loop closure off restarts and plays');
     await page.locator('#play-button').click();
     s = await waitForStatus(page, (x) => !x.playing, { timeoutMs: 30_000 });
     assert.equal(s.playing, false, 'Pause stops');
