@@ -248,10 +248,15 @@ mod tests {
         assert!((k.axial_m(2.0) - 0.006_064).abs() < 1e-6);
         let s = SensorNoise::structured_light();
         assert!((s.axial_m(4.0) - 0.0228).abs() < 1e-6);
-        // Facing the surface only the axial part counts; grazing, the angle and lateral parts grow.
+        // Facing the surface only the axial part counts. Oblique, the axial
+        // part is projected on the normal (by cos theta) and the angle and
+        // lateral parts add to it: more than the projection alone, and
+        // growing towards grazing.
         let facing = s.along_normal_m(2.0, 1.0, 525.0);
         assert!((facing - s.axial_m(2.0)).abs() < 1e-7);
-        assert!(s.along_normal_m(2.0, 0.3, 525.0) > facing);
+        let oblique = s.along_normal_m(2.0, 0.3, 525.0);
+        assert!(oblique > 0.3 * s.axial_m(2.0) * 1.5, "{oblique}");
+        assert!(s.along_normal_m(2.0, 0.1, 525.0) > oblique);
         assert!((s.weight(s.reference_m()) - 1.0).abs() < 1e-6);
         assert!(s.weight(s.axial_m(4.0)) < 0.01);
     }
@@ -266,10 +271,13 @@ mod tests {
 
     #[test]
     fn uniform_weighs_everything_one() {
+        // Uniform models are not weighted at all (`is_uniform` skips the
+        // weights in ICP and fusion); facing the surface their weight is 1
+        // at every depth.
         for noise in [SensorNoise::uniform(), SensorNoise::rendered()] {
             assert!(noise.is_uniform());
-            for (z, c) in [(0.5, 1.0), (3.0, 0.5), (7.0, 0.1)] {
-                let w = noise.weight(noise.along_normal_m(z, c, 480.0));
+            for z in [0.5, 3.0, 7.0] {
+                let w = noise.weight(noise.along_normal_m(z, 1.0, 480.0));
                 assert!((w - 1.0).abs() < 1e-5, "{w}");
             }
         }
