@@ -6,7 +6,7 @@ use clap::Args;
 use std::path::PathBuf;
 use surfel_slam::dataset::Sequence;
 use surfel_slam::eval::ate;
-use surfel_slam::{Pipeline, StageTimings, Verdict};
+use surfel_slam::{Pipeline, SlamConfig, StageTimings, Verdict};
 
 use crate::{config_for, CameraOverrides, TrackingArgs, MAX_DT};
 
@@ -107,6 +107,9 @@ fn stage_medians(timings: &[StageTimings]) -> Vec<(&'static str, f64)> {
 /// mostly in cache.
 const INTERLEAVE: usize = 25;
 
+/// Colour and depth PNG bytes of one frame.
+type PngPair = (Vec<u8>, Vec<u8>);
+
 /// Verdicts of a run that are not plain tracking.
 #[derive(Default)]
 struct Counts {
@@ -120,7 +123,7 @@ struct Counts {
 /// by fusion, or `None` when the frame was refused.
 fn play(
     slam: &mut Pipeline,
-    frames: &[(Vec<u8>, Vec<u8>)],
+    frames: &[PngPair],
     sequence: &Sequence,
     i: usize,
     counts: &mut Counts,
@@ -147,13 +150,34 @@ fn play(
     }
 }
 
+/// Runs `surfel-slam bench`: plays the sequence (files read up front),
+/// then prints the run's line, its ATE, the stage medians and, for runs of
+/// 400 frames or more, how the cost changed along the run.
+///
+/// Phases, in order: `read_sequence`, `bench_config`, `record`,
+/// `print_run`, `print_flatness`, `print_totals`.
 pub fn bench(args: &BenchArgs) -> Result<()> {
+    let (sequence, bytes) = read_sequence(args)?;
+    let total = args.frames.unwrap_or(sequence.frames.len());
+    let config = bench_config(args, &sequence, &bytes)?;
+    let mut slam = Pipeline::new(config.clone())?;
+    let recording = record(&mut slam, &config, (&bytes, &sequence), total)?;
+    print_run(args, &sequence, &slam, total, &recording);
+    if recording.timings.len() >= 400 {
+        print_flatness(&recording, sequence.frames.len());
+    }
+    print_totals(&recording);
+    Ok(())
+}
+
+/// The sequence and every frame's colour and depth PNG bytes, read up
+/// front so that disk speed is not part of the timings.
+fn read_sequence(args: &BenchArgs) -> Result<(Sequence, Vec<PngPair>)> {
     let sequence = Sequence::open(&args.dataset)
         .with_context(|| format!("opening {}", args.dataset.display()))?;
     if sequence.frames.is_empty() {
         bail!("{} holds no frames", args.dataset.display());
     }
-    // Files are read up front so that disk speed is not part of the timings.
     let mut bytes = Vec::with_capacity(sequence.frames.len());
     for entry in &sequence.frames {
         let read = |name: &str| {
@@ -162,54 +186,102 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         };
         bytes.push((read(&entry.colour)?, read(&entry.depth)?));
     }
-    let total = args.frames.unwrap_or(sequence.frames.len());
-    let mut config = config_for(&sequence, &args.camera, &args.tracking)?;
-    let first = surfel_slam::RgbdFrame::from_png_bytes(&bytes[0].0, &bytes[0].1, &config.depth)
+    Ok((sequence, bytes))
+}
+
+/// The configuration for the command line's settings, at the first frame's
+/// image size.
+fn bench_config(args: &BenchArgs, sequence: &Sequence, bytes: &[PngPair]) -> Result<SlamConfig> {
+    let mut config = config_for(sequence, &args.camera, &args.tracking)?;
+    let (colour, depth) = &bytes[0];
+    let first = surfel_slam::RgbdFrame::from_png_bytes(colour, depth, &config.depth)
         .context("decoding the first frame")?;
     config.intrinsics.width = first.width;
     config.intrinsics.height = first.height;
-    let mut slam = Pipeline::new(config.clone())?;
+    Ok(config)
+}
 
-    let mut timings = Vec::with_capacity(total);
-    // Per frame: surfels in the map and surfels visited by fusion.
-    let mut sizes: Vec<(f64, f64)> = Vec::with_capacity(total);
-    let mut counts = Counts::default();
-    // A second run of the same frames whose steps 100-200 are played
-    // between the main run's last 100 steps, a few at a time.
+/// What a bench run recorded.
+struct Recording {
+    /// Stage timings of each frame the main run pushed.
+    timings: Vec<StageTimings>,
+    /// Per frame pushed: surfels in the map and surfels visited by fusion.
+    sizes: Vec<(f64, f64)>,
+    /// The main run's verdicts that are not plain tracking.
+    counts: Counts,
+    /// The twin run's steps 100-200 (timings, sizes), played between the
+    /// main run's last 100 steps.
+    twin_steps: Vec<(StageTimings, (f64, f64))>,
+    /// Peak resident memory before the twin run started (it holds a second
+    /// map), MiB; `None` without a twin run or off Linux.
+    peak_rss: Option<f64>,
+}
+
+/// Plays `total` ping-pong steps over `frames` (PNG bytes of `sequence`'s
+/// frames) on `slam`; from `total` = 400 on, a second run of the same
+/// frames (`config`) plays its steps 100-200 between the main run's last 100
+/// steps, a few at a time.
+fn record(
+    slam: &mut Pipeline,
+    config: &SlamConfig,
+    (frames, sequence): (&[PngPair], &Sequence),
+    total: usize,
+) -> Result<Recording> {
+    let mut recording = Recording {
+        timings: Vec::with_capacity(total),
+        sizes: Vec::with_capacity(total),
+        counts: Counts::default(),
+        twin_steps: Vec::with_capacity(100),
+        peak_rss: None,
+    };
     let mut twin: Option<Pipeline> = None;
-    let mut twin_steps: Vec<(StageTimings, (f64, f64))> = Vec::with_capacity(100);
     let late_start = total.saturating_sub(100);
-    // Taken before the twin run starts: it holds a second map.
-    let mut peak_rss = None;
     for i in 0..total {
         if total >= 400 && i >= late_start && (i - late_start) % INTERLEAVE == 0 {
             let twin = match &mut twin {
                 Some(t) => t,
                 None => {
-                    peak_rss = peak_rss_mib();
+                    recording.peak_rss = peak_rss_mib();
                     let mut t = Pipeline::new(config.clone())?;
                     for s in 0..100 {
-                        play(&mut t, &bytes, &sequence, s, &mut Counts::default());
+                        play(&mut t, frames, sequence, s, &mut Counts::default());
                     }
                     twin.insert(t)
                 }
             };
             let s = 100 + i - late_start;
             for s in s..s + INTERLEAVE {
-                twin_steps.extend(play(twin, &bytes, &sequence, s, &mut Counts::default()));
+                recording.twin_steps.extend(play(
+                    twin,
+                    frames,
+                    sequence,
+                    s,
+                    &mut Counts::default(),
+                ));
             }
         }
-        if let Some(step) = play(&mut slam, &bytes, &sequence, i, &mut counts) {
-            timings.push(step.0);
-            sizes.push(step.1);
+        if let Some(step) = play(slam, frames, sequence, i, &mut recording.counts) {
+            recording.timings.push(step.0);
+            recording.sizes.push(step.1);
         }
     }
+    Ok(recording)
+}
+
+/// Prints the run's line (frames, verdicts, map size, threads), its ATE
+/// when the sequence has ground truth, and the median time of each stage.
+fn print_run(
+    args: &BenchArgs,
+    sequence: &Sequence,
+    slam: &Pipeline,
+    total: usize,
+    recording: &Recording,
+) {
     let Counts {
         lost,
         recovered,
         failed,
-    } = counts;
-
+    } = recording.counts;
     let size = slam.config().intrinsics;
     println!(
         "{}: {} frames at {}x{}, {lost} lost, {recovered} recovered, {failed} unreadable, {} surfels, {} rayon threads",
@@ -226,113 +298,155 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
             Err(e) => println!("ate_cm: n/a ({e})"),
         }
     }
-    for (name, ms) in stage_medians(&timings) {
+    for (name, ms) in stage_medians(&recording.timings) {
         println!("median_ms_{name}: {ms:.2}");
     }
-    // Flatness over a long run: the same window length early and late.
-    if timings.len() >= 400 {
-        let n = timings.len();
-        let (early, late) = (&timings[100..200], &timings[n - 100..n]);
-        for ((name, e), (_, l)) in stage_medians(early).into_iter().zip(stage_medians(late)) {
-            println!("window_ms_{name}: {e:.2} early, {l:.2} late");
-        }
-        let window_sizes = |range: std::ops::Range<usize>| {
-            let window = &sizes[range];
-            let mut map: Vec<f64> = window.iter().map(|s| s.0).collect();
-            let mut visited: Vec<f64> = window.iter().map(|s| s.1).collect();
-            (median(&mut map) / 1e3, median(&mut visited) / 1e3)
-        };
-        let ((map_e, visited_e), (map_l, visited_l)) =
-            (window_sizes(100..200), window_sizes(n - 100..n));
-        println!("window_k_surfels: {map_e:.0} early, {map_l:.0} late");
-        println!("window_k_visited_by_fusion: {visited_e:.0} early, {visited_l:.0} late");
-        let total = |window: &[StageTimings]| {
-            let mut v: Vec<f64> = window.iter().map(|t| t.total_ms).collect();
-            median(&mut v)
-        };
-        // Every window of 100 frames, to tell the first pass over the scene
-        // (still being mapped) from revisits of a bigger map.
-        let every: Vec<usize> = (0..n / 100).map(|w| 100 * w).collect();
-        let total_ms = |i: usize| timings[i].total_ms;
-        let k_surfels = |i: usize| sizes[i].0 / 1e3;
-        let k_visited = |i: usize| sizes[i].1 / 1e3;
-        println!("windows_ms_per_frame: {}", window_medians(&every, total_ms));
-        println!(
-            "windows_k_visited_by_fusion: {}",
-            window_medians(&every, k_visited)
-        );
-        // The windows of `starts` (the same views in the same direction):
-        // the cost of one view as the map grows around it.
-        let print_series = |name: &str, starts: &[usize]| {
-            let at: Vec<String> = starts.iter().map(|s| format!("{s}-{}", s + 100)).collect();
-            println!("{name}_frames: {}", at.join(" "));
-            println!("{name}_ms_per_frame: {}", window_medians(starts, total_ms));
-            println!("{name}_k_surfels: {}", window_medians(starts, k_surfels));
-            println!(
-                "{name}_k_visited_by_fusion: {}",
-                window_medians(starts, k_visited)
-            );
-        };
-        // Frames 100-200 and the same views on each later pass.
-        let starts = same_view_starts(100, n, sequence.frames.len());
-        if starts.len() > 1 {
-            print_series("same_views", &starts);
-        }
-        // The last 100 frames' views on each pass: from the first way back
-        // on, the scene is mapped and only the map's growth remains.
-        let late_starts = same_view_starts(n - 100, n, sequence.frames.len());
-        if let [first, .., _] = late_starts[..] {
-            print_series("late_views", &late_starts);
-            let mut earliest: Vec<f64> = (first..first + 100).map(total_ms).collect();
-            println!(
-                "late_over_its_first_revisit: {:.3}",
-                total(late) / median(&mut earliest).max(1e-9)
-            );
-        }
-        // The last 100 frames show other views than frames 100-200, and
-        // views differ in cost whatever the map holds; the first pass over
-        // the same views as the last 100 frames tells the two apart.
-        let len = sequence.frames.len();
-        if n - 100 >= len {
-            let mut first: Vec<f64> = first_pass_steps(n - 100..n, len)
-                .into_iter()
-                .filter_map(|s| timings.get(s).map(|t| t.total_ms))
-                .collect();
-            let first = median(&mut first);
-            println!(
-                "late_views_first_pass_ms: {first:.2}\nlate_over_its_first_pass: {:.3}",
-                total(late) / first.max(1e-9)
-            );
-        }
-        let (early, late) = (total(early), total(late));
-        println!(
-            "median_ms_frames_100_200: {early:.2}\nmedian_ms_frames_{}_{n}: {late:.2}\nlate_over_early: {:.3}",
-            n - 100,
-            late / early.max(1e-9)
-        );
-        // The same comparison with the two windows played in turns, so that
-        // the machine's slow spells fall on both alike; the twin run must
-        // have done exactly the work of the main run's steps 100-200.
-        if twin_steps.len() == 100 {
-            let same_work = twin_steps
-                .iter()
-                .map(|t| t.1)
-                .eq(sizes[100..200].iter().copied());
-            let mut twin_ms: Vec<f64> = twin_steps.iter().map(|t| t.0.total_ms).collect();
-            let twin_early = median(&mut twin_ms);
-            println!(
-                "interleaved_same_work: {same_work}\ninterleaved_ms_frames_100_200: {twin_early:.2}\ninterleaved_late_over_early: {:.3}",
-                late / twin_early.max(1e-9)
-            );
-        }
+}
+
+/// Median total time per frame over `window`, milliseconds.
+fn median_total_ms(window: &[StageTimings]) -> f64 {
+    let mut v: Vec<f64> = window.iter().map(|t| t.total_ms).collect();
+    median(&mut v)
+}
+
+/// Flatness over a long run (at least 400 frames pushed) of a sequence of
+/// `len` frames: the same window length early and late, every window, the
+/// same views on each pass, and the interleaved twin comparison.
+fn print_flatness(recording: &Recording, len: usize) {
+    print_early_and_late(recording);
+    print_every_window(recording);
+    print_same_views(recording, len);
+    print_late_over_early(recording);
+}
+
+/// Stage medians and map sizes of frames 100-200 against the last 100.
+fn print_early_and_late(recording: &Recording) {
+    let (timings, sizes) = (&recording.timings, &recording.sizes);
+    let n = timings.len();
+    let (early, late) = (&timings[100..200], &timings[n - 100..n]);
+    for ((name, e), (_, l)) in stage_medians(early).into_iter().zip(stage_medians(late)) {
+        println!("window_ms_{name}: {e:.2} early, {l:.2} late");
     }
-    match peak_rss.or_else(peak_rss_mib) {
+    let window_sizes = |range: std::ops::Range<usize>| {
+        let window = &sizes[range];
+        let mut map: Vec<f64> = window.iter().map(|s| s.0).collect();
+        let mut visited: Vec<f64> = window.iter().map(|s| s.1).collect();
+        (median(&mut map) / 1e3, median(&mut visited) / 1e3)
+    };
+    let ((map_e, visited_e), (map_l, visited_l)) =
+        (window_sizes(100..200), window_sizes(n - 100..n));
+    println!("window_k_surfels: {map_e:.0} early, {map_l:.0} late");
+    println!("window_k_visited_by_fusion: {visited_e:.0} early, {visited_l:.0} late");
+}
+
+/// Every window of 100 frames, to tell the first pass over the scene
+/// (still being mapped) from revisits of a bigger map.
+fn print_every_window(recording: &Recording) {
+    let (timings, sizes) = (&recording.timings, &recording.sizes);
+    let every: Vec<usize> = (0..timings.len() / 100).map(|w| 100 * w).collect();
+    println!(
+        "windows_ms_per_frame: {}",
+        window_medians(&every, |i| timings[i].total_ms)
+    );
+    println!(
+        "windows_k_visited_by_fusion: {}",
+        window_medians(&every, |i| sizes[i].1 / 1e3)
+    );
+}
+
+/// The cost of the same views (the same frames in the same direction) on
+/// each pass over a sequence of `len` frames, as the map grows around them.
+fn print_same_views(recording: &Recording, len: usize) {
+    let (timings, sizes) = (&recording.timings, &recording.sizes);
+    let n = timings.len();
+    let late = &timings[n - 100..n];
+    let total_ms = |i: usize| timings[i].total_ms;
+    let k_surfels = |i: usize| sizes[i].0 / 1e3;
+    let k_visited = |i: usize| sizes[i].1 / 1e3;
+    // The windows of `starts` (the same views in the same direction):
+    // the cost of one view as the map grows around it.
+    let print_series = |name: &str, starts: &[usize]| {
+        let at: Vec<String> = starts.iter().map(|s| format!("{s}-{}", s + 100)).collect();
+        println!("{name}_frames: {}", at.join(" "));
+        println!("{name}_ms_per_frame: {}", window_medians(starts, total_ms));
+        println!("{name}_k_surfels: {}", window_medians(starts, k_surfels));
+        println!(
+            "{name}_k_visited_by_fusion: {}",
+            window_medians(starts, k_visited)
+        );
+    };
+    // Frames 100-200 and the same views on each later pass.
+    let starts = same_view_starts(100, n, len);
+    if starts.len() > 1 {
+        print_series("same_views", &starts);
+    }
+    // The last 100 frames' views on each pass: from the first way back
+    // on, the scene is mapped and only the map's growth remains.
+    let late_starts = same_view_starts(n - 100, n, len);
+    if let [first, .., _] = late_starts[..] {
+        print_series("late_views", &late_starts);
+        let mut earliest: Vec<f64> = (first..first + 100).map(total_ms).collect();
+        println!(
+            "late_over_its_first_revisit: {:.3}",
+            median_total_ms(late) / median(&mut earliest).max(1e-9)
+        );
+    }
+    // The last 100 frames show other views than frames 100-200, and
+    // views differ in cost whatever the map holds; the first pass over
+    // the same views as the last 100 frames tells the two apart.
+    if n - 100 >= len {
+        let mut first: Vec<f64> = first_pass_steps(n - 100..n, len)
+            .into_iter()
+            .filter_map(|s| timings.get(s).map(|t| t.total_ms))
+            .collect();
+        let first = median(&mut first);
+        println!(
+            "late_views_first_pass_ms: {first:.2}\nlate_over_its_first_pass: {:.3}",
+            median_total_ms(late) / first.max(1e-9)
+        );
+    }
+}
+
+/// Median time per frame of frames 100-200 against the last 100, played
+/// one after the other and, with the twin run, in turns.
+fn print_late_over_early(recording: &Recording) {
+    let (timings, sizes) = (&recording.timings, &recording.sizes);
+    let n = timings.len();
+    let (early, late) = (
+        median_total_ms(&timings[100..200]),
+        median_total_ms(&timings[n - 100..n]),
+    );
+    println!(
+        "median_ms_frames_100_200: {early:.2}\nmedian_ms_frames_{}_{n}: {late:.2}\nlate_over_early: {:.3}",
+        n - 100,
+        late / early.max(1e-9)
+    );
+    // The same comparison with the two windows played in turns, so that
+    // the machine's slow spells fall on both alike; the twin run must
+    // have done exactly the work of the main run's steps 100-200.
+    let twin_steps = &recording.twin_steps;
+    if twin_steps.len() == 100 {
+        let same_work = twin_steps
+            .iter()
+            .map(|t| t.1)
+            .eq(sizes[100..200].iter().copied());
+        let mut twin_ms: Vec<f64> = twin_steps.iter().map(|t| t.0.total_ms).collect();
+        let twin_early = median(&mut twin_ms);
+        println!(
+            "interleaved_same_work: {same_work}\ninterleaved_ms_frames_100_200: {twin_early:.2}\ninterleaved_late_over_early: {:.3}",
+            late / twin_early.max(1e-9)
+        );
+    }
+}
+
+/// Peak resident memory and the median time per frame of the whole run.
+fn print_totals(recording: &Recording) {
+    match recording.peak_rss.or_else(peak_rss_mib) {
         Some(mib) => println!("peak_rss_mib: {mib:.1}"),
         None => println!("peak_rss_mib: n/a"),
     }
-    let mut totals: Vec<f64> = timings.iter().map(|t| t.total_ms).collect();
+    let mut totals: Vec<f64> = recording.timings.iter().map(|t| t.total_ms).collect();
     println!("median_ms_per_frame: {:.2}", median(&mut totals));
-    Ok(())
 }
 
 #[cfg(test)]

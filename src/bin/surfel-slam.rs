@@ -9,22 +9,18 @@
 
 mod bench;
 mod evaluate;
+mod mesh_file;
 mod plot;
+mod run;
 
-use anyhow::{bail, Context, Result};
+use anyhow::Result;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressState, ProgressStyle};
-use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use surfel_slam::dataset::{ply::write_ply, trajectory, DatasetSource, FrameEntry, Sequence};
-use surfel_slam::eval::ate;
-use surfel_slam::fusion::{FusionConfig, SurfelMap};
-use surfel_slam::mesh::{
-    read_surfel_ply, write_mesh, MeshConfig, MeshFormat, Mesher, TriangleMesh,
-};
+use surfel_slam::dataset::Sequence;
+use surfel_slam::fusion::FusionConfig;
 use surfel_slam::track::{TrackerConfig, TrackerMode};
-use surfel_slam::{CameraPreset, Pipeline, SensorNoise, SlamConfig, Verdict};
+use surfel_slam::{CameraPreset, SensorNoise, SlamConfig};
 
 /// Timestamps of matched poses may differ by this much (seconds; frame numbers match exactly).
 pub(crate) const MAX_DT: f64 = 0.02;
@@ -43,75 +39,15 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Track and fuse a TUM, ICL-NUIM or 7-Scenes folder.
-    Run(RunArgs),
+    Run(run::RunArgs),
     /// Time every stage over a sequence (files preloaded; decode included):
     /// medians per stage and per frame, peak memory.
     Bench(bench::BenchArgs),
     /// Mesh a saved surfel map (binary PLY, as `run --ply` writes it).
-    Mesh(MeshArgs),
+    Mesh(mesh_file::MeshArgs),
     /// ATE and RPE of a TUM-format trajectory against ground truth;
     /// optionally the per-pose errors as CSV and a plot.
     Eval(evaluate::EvalArgs),
-}
-
-#[derive(Args)]
-struct RunArgs {
-    /// Dataset folder, or archive (.zip, .tar, .tar.gz / .tgz) read in place;
-    /// layout detected automatically.
-    dataset: PathBuf,
-    /// Write the estimated trajectory here (TUM format, world_from_camera).
-    #[arg(long)]
-    trajectory: Option<PathBuf>,
-    /// Also write the online trajectory here: each pose as tracked, before
-    /// loop closures corrected it (TUM format, world_from_camera).
-    #[arg(long)]
-    online_trajectory: Option<PathBuf>,
-    /// Write the surfel map here (binary PLY).
-    #[arg(long)]
-    ply: Option<PathBuf>,
-    /// First frame to use (0-based).
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
-    first: usize,
-    /// Number of frames to use [default: all].
-    #[arg(long, allow_negative_numbers = true, value_parser = positive)]
-    count: Option<usize>,
-    /// Keep every Nth frame only (simulates dropped frames or a slower camera).
-    #[arg(
-        long,
-        default_value_t = 1,
-        allow_negative_numbers = true,
-        value_parser = clap::value_parser!(u32).range(1..)
-    )]
-    stride: u32,
-    #[command(flatten)]
-    camera: CameraOverrides,
-    #[command(flatten)]
-    tracking: TrackingArgs,
-    /// No progress bar.
-    #[arg(long, short)]
-    quiet: bool,
-    /// Write a triangle mesh of the confident surfels here (.glb, .ply or .obj).
-    #[arg(long)]
-    mesh: Option<PathBuf>,
-    /// Voxel edge of the mesh, metres.
-    #[arg(long, default_value_t = MeshConfig::default().voxel_size_m)]
-    voxel_size: f32,
-}
-
-#[derive(Args)]
-struct MeshArgs {
-    /// Surfel map (binary little-endian PLY with x y z nx ny nz; colours,
-    /// radius and confidence used when present).
-    map: PathBuf,
-    /// Output mesh (.glb, .ply or .obj).
-    #[arg(long, short)]
-    output: PathBuf,
-    /// Voxel edge, metres.
-    #[arg(long, default_value_t = MeshConfig::default().voxel_size_m)]
-    voxel_size: f32,
-    /// Use only surfels at least this confident (default: fusion's stable confidence).
-    #[arg(long, default_value_t = MeshConfig::default().min_confidence)]
-    min_confidence: f32,
 }
 
 /// Processing options shared by `run` and `bench`.
@@ -297,14 +233,11 @@ pub(crate) struct CameraOverrides {
     depth_max: Option<f32>,
 }
 
-/// Exit code of a run that finished with some frames skipped as unreadable.
-const EXIT_FRAMES_SKIPPED: u8 = 3;
-
 fn main() -> ExitCode {
     let result = match Cli::parse().command {
-        Command::Run(args) => run(&args),
+        Command::Run(args) => run::run(&args),
         Command::Bench(args) => bench::bench(&args).map(|()| 0),
-        Command::Mesh(args) => mesh_file(&args).map(|()| 0),
+        Command::Mesh(args) => mesh_file::mesh_file(&args).map(|()| 0),
         Command::Eval(args) => evaluate::evaluate(&args).map(|()| 0),
     };
     match result {
@@ -320,7 +253,7 @@ fn main() -> ExitCode {
 /// The error and its causes joined by ": ", skipping a cause whose text the
 /// message already holds (library errors name their file and repeat their
 /// source's text).
-fn describe(e: &anyhow::Error) -> String {
+pub(crate) fn describe(e: &anyhow::Error) -> String {
     let mut out = String::new();
     for cause in e.chain() {
         let text = cause.to_string();
@@ -355,236 +288,4 @@ pub(crate) fn config_for(
     // Refuse bad camera settings before reading any image.
     config.validate()?;
     Ok(config)
-}
-
-/// The first frame that decodes, for the sequence's image size; the frames
-/// before it are named on stderr.
-fn first_readable(
-    source: &mut DatasetSource,
-    frames: &[&FrameEntry],
-    config: &SlamConfig,
-) -> Result<(usize, usize)> {
-    let mut last_error = None;
-    for entry in frames {
-        match source.read_frame(entry, &config.depth) {
-            Ok(f) => return Ok((f.width, f.height)),
-            Err(e) => {
-                eprintln!("frame {} unreadable: {e}", entry.index);
-                last_error = Some(e);
-            }
-        }
-    }
-    match last_error {
-        Some(e) => Err(e).context("no frame of the sequence could be read"),
-        None => bail!("no frames selected"),
-    }
-}
-
-fn run(args: &RunArgs) -> Result<u8> {
-    // A folder or an archive (.zip, .tar, .tar.gz), read in place.
-    let mut source = DatasetSource::open(&args.dataset)
-        .with_context(|| format!("opening {}", args.dataset.display()))?;
-    let sequence = source
-        .sequence()
-        .with_context(|| format!("opening {}", args.dataset.display()))?;
-    for warning in &sequence.warnings {
-        eprintln!("warning: {warning}");
-    }
-    let frames: Vec<_> = sequence
-        .frames
-        .iter()
-        .skip(args.first)
-        .step_by(args.stride as usize)
-        .take(args.count.unwrap_or(usize::MAX))
-        .collect();
-    if frames.is_empty() {
-        bail!(
-            "no frames selected: the sequence has {} frames, --first is {}",
-            sequence.frames.len(),
-            args.first
-        );
-    }
-    // Refuse a bad mesh path or voxel size before the run, not after it.
-    let mesh_config = MeshConfig {
-        voxel_size_m: args.voxel_size,
-        ..MeshConfig::default()
-    };
-    if let Some(path) = &args.mesh {
-        mesh_format(path)?;
-        mesh_config.validate()?;
-    }
-    let mut config = config_for(&sequence, &args.camera, &args.tracking)?;
-    // The sequence's own image size wins over the preset's.
-    let (width, height) = first_readable(&mut source, &frames, &config)?;
-    config.intrinsics.width = width;
-    config.intrinsics.height = height;
-    let mut slam = Pipeline::new(config)?;
-
-    let bar = if args.quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(frames.len() as u64)
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} frames, {fps}, ETA {eta}, {msg}")
-            .map(|s| {
-                s.with_key(
-                    "fps",
-                    |state: &ProgressState, w: &mut dyn std::fmt::Write| {
-                        let _ = write!(w, "{:.1} fps", state.per_sec());
-                    },
-                )
-            })
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
-    for entry in &frames {
-        let result = source
-            .read_frame(entry, &slam.config().depth)
-            .map_err(anyhow::Error::from)
-            .and_then(|f| {
-                let t0 = std::time::Instant::now();
-                let r = slam
-                    .push_frame(&f, entry.timestamp)
-                    .with_context(|| format!("{} + {}", entry.colour, entry.depth))?;
-                Ok((r, t0.elapsed().as_secs_f64() * 1000.0))
-            });
-        match result {
-            Ok((report, elapsed)) => {
-                ms.push(elapsed);
-                match report.verdict {
-                    // suspend, not println: a hidden bar (--quiet, no
-                    // terminal) drops println's lines.
-                    Verdict::Lost(reason) => bar.suspend(|| {
-                        eprintln!(
-                            "frame {} ({}) lost: {} (map kept, frame not fused)",
-                            entry.index,
-                            entry.timestamp,
-                            reason.name()
-                        );
-                    }),
-                    Verdict::Recovered => bar.suspend(|| {
-                        let why = if streak == 0 {
-                            "the normal tracker failed".to_owned()
-                        } else {
-                            format!("{streak} lost frame(s)")
-                        };
-                        eprintln!(
-                            "frame {} ({}) recovered: re-acquired against the map after {why}",
-                            entry.index, entry.timestamp,
-                        );
-                    }),
-                    _ => {}
-                }
-                streak = report.counts.lost_streak;
-                bar.set_message(format!(
-                    "{} surfels, {} lost, {} recovered",
-                    report.surfels, report.counts.lost, report.counts.recovered
-                ));
-            }
-            Err(e) => {
-                failed += 1;
-                bar.suspend(|| eprintln!("frame {} skipped: {}", entry.index, describe(&e)));
-            }
-        }
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
-
-    for (path, poses) in [
-        (&args.trajectory, slam.trajectory()),
-        (&args.online_trajectory, slam.online_trajectory()),
-    ] {
-        if let Some(path) = path {
-            std::fs::write(path, trajectory::format_tum(poses))
-                .with_context(|| format!("writing {}", path.display()))?;
-        }
-    }
-    if let Some(path) = &args.ply {
-        std::fs::write(path, write_ply(slam.map()))
-            .with_context(|| format!("writing {}", path.display()))?;
-    }
-    if let Some(path) = &args.mesh {
-        let config = MeshConfig {
-            min_confidence: slam.config().fusion.stable_confidence,
-            ..mesh_config
-        };
-        write_mesh_file(slam.map(), &config, path, args.quiet)?;
-    }
-    ms.sort_by(f64::total_cmp);
-    let mean = ms.iter().sum::<f64>() / ms.len().max(1) as f64;
-    let median = ms.get(ms.len() / 2).copied().unwrap_or(0.0);
-    let counts = slam.counts();
-    let accuracy = if sequence.ground_truth.is_empty() {
-        "ATE n/a (no ground truth)".to_string()
-    } else {
-        match ate(slam.trajectory(), &sequence.ground_truth, MAX_DT) {
-            Ok(a) => format!("ATE {} ({} poses)", evaluate::cm(a.rmse_m), a.pairs),
-            Err(e) => format!("ATE n/a ({e})"),
-        }
-    };
-    println!(
-        "{}: {} frames, {} tracked, {} lost, {} recovered, {failed} unreadable, {} loop closures, {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
-        args.dataset.display(),
-        frames.len(),
-        counts.tracked,
-        counts.lost,
-        counts.recovered,
-        slam.loop_closures(),
-        slam.map().live_len(),
-    );
-    Ok(if failed > 0 { EXIT_FRAMES_SKIPPED } else { 0 })
-}
-
-fn mesh_format(path: &Path) -> Result<MeshFormat> {
-    MeshFormat::from_path(path).with_context(|| {
-        format!(
-            "{}: unknown mesh format; use a .glb, .ply or .obj file name",
-            path.display()
-        )
-    })
-}
-
-/// Meshes `map` and writes the mesh to `path` (format from the extension);
-/// prints one line with the counts and the time.
-fn write_mesh_file(map: &SurfelMap, config: &MeshConfig, path: &Path, quiet: bool) -> Result<()> {
-    let format = mesh_format(path)?;
-    let t0 = std::time::Instant::now();
-    let bar = if quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(100)
-    };
-    let mut mesh = TriangleMesh::default();
-    let stats = Mesher::new().mesh_into(map, config, &mut mesh, &mut |f| {
-        bar.set_position((f * 100.0) as u64);
-    })?;
-    bar.finish_and_clear();
-    let ms = t0.elapsed().as_secs_f64() * 1000.0;
-    std::fs::write(path, write_mesh(&mesh, format))
-        .with_context(|| format!("writing {}", path.display()))?;
-    println!(
-        "{}: {} vertices, {} triangles from {} surfels ({} voxel blocks of {} m voxels), meshed in {ms:.0} ms",
-        path.display(),
-        stats.vertices,
-        stats.triangles,
-        stats.surfels_used,
-        stats.blocks,
-        config.voxel_size_m
-    );
-    Ok(())
-}
-
-fn mesh_file(args: &MeshArgs) -> Result<()> {
-    mesh_format(&args.output)?;
-    let config = MeshConfig {
-        voxel_size_m: args.voxel_size,
-        min_confidence: args.min_confidence,
-        ..MeshConfig::default()
-    };
-    config.validate()?;
-    let bytes =
-        std::fs::read(&args.map).with_context(|| format!("reading {}", args.map.display()))?;
-    let map = read_surfel_ply(&bytes).with_context(|| args.map.display().to_string())?;
-    write_mesh_file(&map, &config, &args.output, false)
 }

@@ -23,6 +23,7 @@ mod depth_tiles;
 pub mod frustum;
 pub mod index_map;
 mod integrate;
+mod noise_weights;
 pub mod predict;
 mod spatial_order;
 mod surfel_map;

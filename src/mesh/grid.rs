@@ -108,6 +108,9 @@ impl Grid {
 
     /// Builds the grid of `map` (`self.voxel` set from `config`). Returns the
     /// numbers of surfels used and skipped.
+    ///
+    /// Phases, in order: `bucket_surfels`, `allocate_blocks`,
+    /// `link_neighbours`, `splat_blocks`.
     pub(super) fn fill(
         &mut self,
         map: &SurfelMap,
@@ -116,14 +119,28 @@ impl Grid {
     ) -> Result<(usize, usize), MeshError> {
         let voxel = config.voxel_size_m;
         self.voxel = voxel;
-        let reach = config.support_voxels.max(config.tangential_voxels) * voxel;
-        let block_m = voxel * B as f32;
         let n = map.common_len();
+        let used = self.bucket_surfels(map, config);
+        progress(0.05);
+        self.allocate_blocks(map, config)?;
+        self.link_neighbours();
+        progress(0.1);
+        self.splat_blocks(map, config, progress);
+        Ok((used, n - used))
+    }
 
-        // 1. Surfels grouped by the block their centre lies in.
+    /// Reach of a surfel's kernel from its centre, metres.
+    fn reach_m(config: &MeshConfig) -> f32 {
+        config.support_voxels.max(config.tangential_voxels) * config.voxel_size_m
+    }
+
+    /// Groups the usable surfels by the block their centre lies in
+    /// (`self.sorted`, `self.buckets`); returns how many were used.
+    fn bucket_surfels(&mut self, map: &SurfelMap, config: &MeshConfig) -> usize {
+        let block_m = config.voxel_size_m * B as f32;
         self.sorted.clear();
         let limit = KEY_LIMIT as f32;
-        for i in 0..n {
+        for i in 0..map.common_len() {
             if !usable(map, i, config) {
                 continue;
             }
@@ -146,10 +163,15 @@ impl Grid {
             self.buckets.insert(key, (start as u32, end as u32));
             start = end;
         }
-        progress(0.05);
+        used
+    }
 
-        // 2. Blocks: every block some surfel's kernel reaches (the box of
-        //    each bucket's centres grown by the reach).
+    /// Creates every block some surfel's kernel reaches (the box of each
+    /// bucket's centres grown by the reach), in packed-key order
+    /// (`self.keys`, `self.index`); refuses more than `config.max_blocks`.
+    fn allocate_blocks(&mut self, map: &SurfelMap, config: &MeshConfig) -> Result<(), MeshError> {
+        let reach = Self::reach_m(config);
+        let block_m = config.voxel_size_m * B as f32;
         self.index.clear();
         self.keys.clear();
         for &(start, end) in self.buckets.values() {
@@ -183,7 +205,7 @@ impl Grid {
             return Err(MeshError::TooLarge {
                 blocks,
                 max: config.max_blocks,
-                voxel_size_m: voxel,
+                voxel_size_m: config.voxel_size_m,
             });
         }
         // Sorted, so that the output does not depend on hash order.
@@ -191,6 +213,12 @@ impl Grid {
         for (b, &k) in self.keys.iter().enumerate() {
             self.index.insert(pack(k), b as u32);
         }
+        Ok(())
+    }
+
+    /// Fills each block's table of its 27 neighbours' block indices
+    /// (`self.neighbours`).
+    fn link_neighbours(&mut self) {
         self.neighbours.clear();
         for &k in &self.keys {
             let mut table = [NONE; 27];
@@ -201,11 +229,19 @@ impl Grid {
             }
             self.neighbours.push(table);
         }
-        progress(0.1);
+    }
 
-        // 3. Distance, weight and colour of every voxel, block by block (a
-        //    block gathers the surfels of its 27 neighbour buckets: no two
-        //    threads write one voxel).
+    /// Distance, weight and colour of every voxel, block by block
+    /// (`self.sdf`, `self.colour`; a block gathers the surfels of its 27
+    /// neighbour buckets: no two threads write one voxel). Reports progress
+    /// from 0.1 to 1.
+    fn splat_blocks(
+        &mut self,
+        map: &SurfelMap,
+        config: &MeshConfig,
+        progress: &mut dyn FnMut(f32),
+    ) {
+        let voxel = config.voxel_size_m;
         let blocks = self.keys.len();
         self.sdf.clear();
         self.sdf.resize(blocks * BV, 0.0);
@@ -217,7 +253,7 @@ impl Grid {
             sorted: &self.sorted,
             buckets: &self.buckets,
             voxel,
-            reach,
+            reach: Self::reach_m(config),
             normal_reach: config.support_voxels * voxel,
             tangential_reach: config.tangential_voxels * voxel,
             min_weight: config.min_weight,
@@ -241,7 +277,6 @@ impl Grid {
                 );
             progress(0.1 + 0.9 * ((n_done + 1) * batch).min(blocks) as f32 / blocks as f32);
         }
-        Ok((used, n - used))
     }
 
     fn clear_blocks(&mut self) {

@@ -91,6 +91,9 @@ impl Around<'_> {
 }
 
 /// Extracts the mesh of `grid` into `mesh` (cleared by the caller).
+///
+/// Phases, in order: `number_vertex_cells_into`, `write_vertices_into`,
+/// `quads_into`, `drop_unused_vertices`.
 pub(super) fn extract(grid: &mut Grid, mesh: &mut TriangleMesh, progress: &mut dyn FnMut(f32)) {
     let blocks = grid.keys.len();
     let mut cell_vertex = std::mem::take(&mut grid.cell_vertex);
@@ -101,10 +104,26 @@ pub(super) fn extract(grid: &mut Grid, mesh: &mut TriangleMesh, progress: &mut d
         return;
     }
     let batch = blocks.div_ceil(BATCHES).max(1);
-    let g: &Grid = grid;
-
-    // 1. Which cells have a vertex; their index within the block.
     let mut counts = vec![0u32; blocks];
+    number_vertex_cells_into(grid, batch, &mut cell_vertex, &mut counts, progress);
+    write_vertices_into(grid, &counts, &mut cell_vertex, mesh);
+    progress(0.6);
+    grid.cell_vertex = cell_vertex;
+    quads_into(grid, batch, &mut mesh.triangles, progress);
+    drop_unused_vertices(mesh, &mut grid.remap);
+}
+
+/// Which cells have a vertex: per block, each such cell's index among the
+/// block's vertex cells into `cell_vertex` (`NONE` for the others) and their
+/// number into `counts`. Reports progress from 0 to 0.3.
+fn number_vertex_cells_into(
+    g: &Grid,
+    batch: usize,
+    cell_vertex: &mut [u32],
+    counts: &mut [u32],
+    progress: &mut dyn FnMut(f32),
+) {
+    let blocks = counts.len();
     for (n_done, (chunk, counts)) in cell_vertex
         .chunks_mut(batch * BV)
         .zip(counts.chunks_mut(batch))
@@ -132,61 +151,69 @@ pub(super) fn extract(grid: &mut Grid, mesh: &mut TriangleMesh, progress: &mut d
             });
         progress(0.3 * ((n_done + 1) * batch).min(blocks) as f32 / blocks as f32);
     }
+}
 
-    // 2. The vertices, written where each block's share starts; cell
-    //    indices become mesh indices.
+/// Writes the vertices into `mesh` (world frame, metres), each block's
+/// share from where it starts (after the blocks before it, `counts` per
+/// block); the block-local indices in `cell_vertex` become mesh indices.
+fn write_vertices_into(g: &Grid, counts: &[u32], cell_vertex: &mut [u32], mesh: &mut TriangleMesh) {
     let total: usize = counts.iter().map(|&c| c as usize).sum();
     mesh.positions.resize(total, Vec3::ZERO);
     mesh.normals.resize(total, Vec3::ZERO);
     mesh.colours.resize(total, [0, 0, 0, 255]);
-    {
-        let mut parts = Vec::with_capacity(blocks);
-        let (mut p, mut n, mut c) = (
-            mesh.positions.as_mut_slice(),
-            mesh.normals.as_mut_slice(),
-            mesh.colours.as_mut_slice(),
-        );
-        let mut offset = 0u32;
-        for (b, cells) in cell_vertex.chunks_mut(BV).enumerate() {
-            let k = counts[b] as usize;
-            let (p0, p1) = p.split_at_mut(k);
-            let (n0, n1) = n.split_at_mut(k);
-            let (c0, c1) = c.split_at_mut(k);
-            parts.push((b, offset, cells, p0, n0, c0));
-            (p, n, c) = (p1, n1, c1);
-            offset += counts[b];
-        }
-        parts
-            .into_par_iter()
-            .for_each(|(b, offset, cells, positions, normals, colours)| {
-                let around = Around {
-                    grid: g,
-                    table: &g.neighbours[b],
-                };
-                let origin = g.keys[b] * B;
-                for (i, cell) in cells.iter_mut().enumerate() {
-                    if *cell == NONE {
-                        continue;
-                    }
-                    let c = IVec3::new(i as i32 % B, (i as i32 / B) % B, i as i32 / (B * B));
-                    let Some(s) = around.crossed_cell(c) else {
-                        continue;
-                    };
-                    let j = *cell as usize;
-                    let (local, normal, colour) = vertex(&around, c, &s);
-                    positions[j] = ((origin + c).as_vec3() + local) * g.voxel;
-                    normals[j] = normal;
-                    colours[j] = colour;
-                    *cell += offset;
-                }
-            });
+    let mut parts = Vec::with_capacity(counts.len());
+    let (mut p, mut n, mut c) = (
+        mesh.positions.as_mut_slice(),
+        mesh.normals.as_mut_slice(),
+        mesh.colours.as_mut_slice(),
+    );
+    let mut offset = 0u32;
+    for (b, cells) in cell_vertex.chunks_mut(BV).enumerate() {
+        let k = counts[b] as usize;
+        let (p0, p1) = p.split_at_mut(k);
+        let (n0, n1) = n.split_at_mut(k);
+        let (c0, c1) = c.split_at_mut(k);
+        parts.push((b, offset, cells, p0, n0, c0));
+        (p, n, c) = (p1, n1, c1);
+        offset += counts[b];
     }
-    progress(0.6);
+    parts
+        .into_par_iter()
+        .for_each(|(b, offset, cells, positions, normals, colours)| {
+            let around = Around {
+                grid: g,
+                table: &g.neighbours[b],
+            };
+            let origin = g.keys[b] * B;
+            for (i, cell) in cells.iter_mut().enumerate() {
+                if *cell == NONE {
+                    continue;
+                }
+                let c = IVec3::new(i as i32 % B, (i as i32 / B) % B, i as i32 / (B * B));
+                let Some(s) = around.crossed_cell(c) else {
+                    continue;
+                };
+                let j = *cell as usize;
+                let (local, normal, colour) = vertex(&around, c, &s);
+                positions[j] = ((origin + c).as_vec3() + local) * g.voxel;
+                normals[j] = normal;
+                colours[j] = colour;
+                *cell += offset;
+            }
+        });
+}
 
-    // 3. A quad for every crossed voxel edge whose lower voxel lies in
-    //    the block.
-    grid.cell_vertex = cell_vertex;
-    let g: &Grid = grid;
+/// Appends to `triangles` a quad (two triangles) for every crossed voxel
+/// edge, block by block in block order (each block the edges whose lower
+/// voxel lies in it; `g.cell_vertex` holds mesh indices). Reports progress
+/// from 0.6 to 1.
+fn quads_into(
+    g: &Grid,
+    batch: usize,
+    triangles: &mut Vec<[u32; 3]>,
+    progress: &mut dyn FnMut(f32),
+) {
+    let blocks = g.keys.len();
     for start in (0..blocks).step_by(batch) {
         let end = (start + batch).min(blocks);
         let part = (start..end)
@@ -199,10 +226,9 @@ pub(super) fn extract(grid: &mut Grid, mesh: &mut TriangleMesh, progress: &mut d
                 a.append(&mut b);
                 a
             });
-        mesh.triangles.extend_from_slice(&part);
+        triangles.extend_from_slice(&part);
         progress(0.6 + 0.4 * end as f32 / blocks as f32);
     }
-    drop_unused_vertices(mesh, &mut grid.remap);
 }
 
 /// Removes the vertices no triangle uses (cells whose neighbours around

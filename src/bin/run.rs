@@ -1,0 +1,338 @@
+//! `surfel-slam run`: track and fuse a dataset folder or archive, then
+//! write the trajectories, the map and the mesh asked for and print one
+//! summary line.
+//!
+//! Phases of [`run`], in order: `open_sequence`, `select_frames`,
+//! `checked_mesh_config`, `start_pipeline`, `track_frames`, `write_outputs`,
+//! `print_summary`.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressState, ProgressStyle};
+use std::path::PathBuf;
+use surfel_slam::dataset::{ply::write_ply, trajectory, DatasetSource, FrameEntry, Sequence};
+use surfel_slam::eval::ate;
+use surfel_slam::mesh::MeshConfig;
+use surfel_slam::{FrameReport, Pipeline, SlamConfig, Verdict};
+
+use crate::mesh_file::{mesh_format, write_mesh_file};
+use crate::{config_for, describe, evaluate, positive, CameraOverrides, TrackingArgs, MAX_DT};
+
+/// Exit code of a run that finished with some frames skipped as unreadable.
+const EXIT_FRAMES_SKIPPED: u8 = 3;
+
+#[derive(Args)]
+pub struct RunArgs {
+    /// Dataset folder, or archive (.zip, .tar, .tar.gz / .tgz) read in place;
+    /// layout detected automatically.
+    dataset: PathBuf,
+    /// Write the estimated trajectory here (TUM format, world_from_camera).
+    #[arg(long)]
+    trajectory: Option<PathBuf>,
+    /// Also write the online trajectory here: each pose as tracked, before
+    /// loop closures corrected it (TUM format, world_from_camera).
+    #[arg(long)]
+    online_trajectory: Option<PathBuf>,
+    /// Write the surfel map here (binary PLY).
+    #[arg(long)]
+    ply: Option<PathBuf>,
+    /// First frame to use (0-based).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    first: usize,
+    /// Number of frames to use [default: all].
+    #[arg(long, allow_negative_numbers = true, value_parser = positive)]
+    count: Option<usize>,
+    /// Keep every Nth frame only (simulates dropped frames or a slower camera).
+    #[arg(
+        long,
+        default_value_t = 1,
+        allow_negative_numbers = true,
+        value_parser = clap::value_parser!(u32).range(1..)
+    )]
+    stride: u32,
+    #[command(flatten)]
+    camera: CameraOverrides,
+    #[command(flatten)]
+    tracking: TrackingArgs,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+    /// Write a triangle mesh of the confident surfels here (.glb, .ply or .obj).
+    #[arg(long)]
+    mesh: Option<PathBuf>,
+    /// Voxel edge of the mesh, metres.
+    #[arg(long, default_value_t = MeshConfig::default().voxel_size_m)]
+    voxel_size: f32,
+}
+
+/// Runs `surfel-slam run`; returns the exit code (0, or
+/// `EXIT_FRAMES_SKIPPED` when some frames were unreadable).
+pub fn run(args: &RunArgs) -> Result<u8> {
+    let (mut source, sequence) = open_sequence(args)?;
+    let frames = select_frames(&sequence, args)?;
+    let mesh_config = checked_mesh_config(args)?;
+    let mut slam = start_pipeline(&mut source, &sequence, &frames, args)?;
+    let played = track_frames(&mut source, &frames, &mut slam, args.quiet);
+    write_outputs(args, &slam, mesh_config)?;
+    print_summary(args, &sequence, &slam, frames.len(), played);
+    Ok(if played.failed > 0 {
+        EXIT_FRAMES_SKIPPED
+    } else {
+        0
+    })
+}
+
+/// Opens the dataset (a folder or an archive, read in place) and its
+/// sequence; prints the sequence's warnings.
+fn open_sequence(args: &RunArgs) -> Result<(DatasetSource, Sequence)> {
+    let mut source = DatasetSource::open(&args.dataset)
+        .with_context(|| format!("opening {}", args.dataset.display()))?;
+    let sequence = source
+        .sequence()
+        .with_context(|| format!("opening {}", args.dataset.display()))?;
+    for warning in &sequence.warnings {
+        eprintln!("warning: {warning}");
+    }
+    Ok((source, sequence))
+}
+
+/// The frames `--first`, `--stride` and `--count` select; refuses an empty
+/// selection.
+fn select_frames<'a>(sequence: &'a Sequence, args: &RunArgs) -> Result<Vec<&'a FrameEntry>> {
+    let frames: Vec<_> = sequence
+        .frames
+        .iter()
+        .skip(args.first)
+        .step_by(args.stride as usize)
+        .take(args.count.unwrap_or(usize::MAX))
+        .collect();
+    if frames.is_empty() {
+        bail!(
+            "no frames selected: the sequence has {} frames, --first is {}",
+            sequence.frames.len(),
+            args.first
+        );
+    }
+    Ok(frames)
+}
+
+/// The mesh settings; a bad mesh path or voxel size is refused before the
+/// run, not after it.
+fn checked_mesh_config(args: &RunArgs) -> Result<MeshConfig> {
+    let mesh_config = MeshConfig {
+        voxel_size_m: args.voxel_size,
+        ..MeshConfig::default()
+    };
+    if let Some(path) = &args.mesh {
+        mesh_format(path)?;
+        mesh_config.validate()?;
+    }
+    Ok(mesh_config)
+}
+
+/// The pipeline for the command line's settings, at the image size of the
+/// sequence's first readable frame (it wins over the preset's).
+fn start_pipeline(
+    source: &mut DatasetSource,
+    sequence: &Sequence,
+    frames: &[&FrameEntry],
+    args: &RunArgs,
+) -> Result<Pipeline> {
+    let mut config = config_for(sequence, &args.camera, &args.tracking)?;
+    let (width, height) = first_readable(source, frames, &config)?;
+    config.intrinsics.width = width;
+    config.intrinsics.height = height;
+    Ok(Pipeline::new(config)?)
+}
+
+/// The first frame that decodes, for the sequence's image size; the frames
+/// before it are named on stderr.
+fn first_readable(
+    source: &mut DatasetSource,
+    frames: &[&FrameEntry],
+    config: &SlamConfig,
+) -> Result<(usize, usize)> {
+    let mut last_error = None;
+    for entry in frames {
+        match source.read_frame(entry, &config.depth) {
+            Ok(f) => return Ok((f.width, f.height)),
+            Err(e) => {
+                eprintln!("frame {} unreadable: {e}", entry.index);
+                last_error = Some(e);
+            }
+        }
+    }
+    match last_error {
+        Some(e) => Err(e).context("no frame of the sequence could be read"),
+        None => bail!("no frames selected"),
+    }
+}
+
+/// What the frame loop leaves for the summary.
+#[derive(Clone, Copy)]
+struct Played {
+    /// Frames skipped as unreadable (or refused by the pipeline).
+    failed: usize,
+    /// Mean and median time of `push_frame` over the frames pushed,
+    /// milliseconds (decoding not included).
+    mean_ms: f64,
+    median_ms: f64,
+}
+
+/// The progress bar of the frame loop (hidden with `--quiet`).
+fn progress_bar(frames: usize, quiet: bool) -> ProgressBar {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(frames as u64)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} frames, {fps}, ETA {eta}, {msg}")
+            .map(|s| {
+                s.with_key(
+                    "fps",
+                    |state: &ProgressState, w: &mut dyn std::fmt::Write| {
+                        let _ = write!(w, "{:.1} fps", state.per_sec());
+                    },
+                )
+            })
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+/// Reads and pushes every frame into `slam`, naming lost, recovered and
+/// skipped frames on stderr.
+fn track_frames(
+    source: &mut DatasetSource,
+    frames: &[&FrameEntry],
+    slam: &mut Pipeline,
+    quiet: bool,
+) -> Played {
+    let bar = progress_bar(frames.len(), quiet);
+    let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
+    for entry in frames {
+        let result = source
+            .read_frame(entry, &slam.config().depth)
+            .map_err(anyhow::Error::from)
+            .and_then(|f| {
+                let t0 = std::time::Instant::now();
+                let r = slam
+                    .push_frame(&f, entry.timestamp)
+                    .with_context(|| format!("{} + {}", entry.colour, entry.depth))?;
+                Ok((r, t0.elapsed().as_secs_f64() * 1000.0))
+            });
+        match result {
+            Ok((report, elapsed)) => {
+                ms.push(elapsed);
+                report_verdict(&bar, entry, &report, streak);
+                streak = report.counts.lost_streak;
+                bar.set_message(format!(
+                    "{} surfels, {} lost, {} recovered",
+                    report.surfels, report.counts.lost, report.counts.recovered
+                ));
+            }
+            Err(e) => {
+                failed += 1;
+                bar.suspend(|| eprintln!("frame {} skipped: {}", entry.index, describe(&e)));
+            }
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    ms.sort_by(f64::total_cmp);
+    Played {
+        failed,
+        mean_ms: ms.iter().sum::<f64>() / ms.len().max(1) as f64,
+        median_ms: ms.get(ms.len() / 2).copied().unwrap_or(0.0),
+    }
+}
+
+/// Names a lost or recovered frame on stderr; `streak` is the number of
+/// lost frames before this one.
+fn report_verdict(bar: &ProgressBar, entry: &FrameEntry, report: &FrameReport, streak: u32) {
+    match report.verdict {
+        // suspend, not println: a hidden bar (--quiet, no
+        // terminal) drops println's lines.
+        Verdict::Lost(reason) => bar.suspend(|| {
+            eprintln!(
+                "frame {} ({}) lost: {} (map kept, frame not fused)",
+                entry.index,
+                entry.timestamp,
+                reason.name()
+            );
+        }),
+        Verdict::Recovered => bar.suspend(|| {
+            let why = if streak == 0 {
+                "the normal tracker failed".to_owned()
+            } else {
+                format!("{streak} lost frame(s)")
+            };
+            eprintln!(
+                "frame {} ({}) recovered: re-acquired against the map after {why}",
+                entry.index, entry.timestamp,
+            );
+        }),
+        _ => {}
+    }
+}
+
+/// Writes the trajectories (TUM), the map (PLY) and the mesh asked for.
+fn write_outputs(args: &RunArgs, slam: &Pipeline, mesh_config: MeshConfig) -> Result<()> {
+    for (path, poses) in [
+        (&args.trajectory, slam.trajectory()),
+        (&args.online_trajectory, slam.online_trajectory()),
+    ] {
+        if let Some(path) = path {
+            std::fs::write(path, trajectory::format_tum(poses))
+                .with_context(|| format!("writing {}", path.display()))?;
+        }
+    }
+    if let Some(path) = &args.ply {
+        std::fs::write(path, write_ply(slam.map()))
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let Some(path) = &args.mesh {
+        let config = MeshConfig {
+            min_confidence: slam.config().fusion.stable_confidence,
+            ..mesh_config
+        };
+        write_mesh_file(slam.map(), &config, path, args.quiet)?;
+    }
+    Ok(())
+}
+
+/// Prints the run's one summary line: frames and verdicts, map size, ATE
+/// against the ground truth when there is one, time per frame.
+fn print_summary(
+    args: &RunArgs,
+    sequence: &Sequence,
+    slam: &Pipeline,
+    frames: usize,
+    played: Played,
+) {
+    let Played {
+        failed,
+        mean_ms: mean,
+        median_ms: median,
+    } = played;
+    let counts = slam.counts();
+    let accuracy = if sequence.ground_truth.is_empty() {
+        "ATE n/a (no ground truth)".to_string()
+    } else {
+        match ate(slam.trajectory(), &sequence.ground_truth, MAX_DT) {
+            Ok(a) => format!("ATE {} ({} poses)", evaluate::cm(a.rmse_m), a.pairs),
+            Err(e) => format!("ATE n/a ({e})"),
+        }
+    };
+    println!(
+        "{}: {} frames, {} tracked, {} lost, {} recovered, {failed} unreadable, {} loop closures, {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
+        args.dataset.display(),
+        frames,
+        counts.tracked,
+        counts.lost,
+        counts.recovered,
+        slam.loop_closures(),
+        slam.map().live_len(),
+    );
+}
