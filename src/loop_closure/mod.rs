@@ -18,10 +18,11 @@ pub mod global;
 pub mod local;
 pub mod relocalise;
 
-pub use closer::{LoopCloser, LoopFrame, LoopOutcome};
+pub use closer::{GlobalLook, LoopCloser, LoopFrame, LoopOutcome};
 
 use crate::track::icp::IcpGates;
 use deformation::DeformConfig;
+use global::GlobalConfig;
 
 /// Settings of loop closure (issue #21): when it runs and what it accepts.
 #[derive(Debug, Clone, PartialEq)]
@@ -73,6 +74,9 @@ pub struct LoopClosureConfig {
     pub max_free_space_fraction: f64,
     /// The deformation graph that bends the map on a closure.
     pub deform: DeformConfig,
+    /// The global check (a place seen long ago, found by the keyframe
+    /// ferns) for drifts the local check refuses; off when `enabled` is.
+    pub global: GlobalConfig,
 }
 
 impl Default for LoopClosureConfig {
@@ -100,6 +104,7 @@ impl Default for LoopClosureConfig {
             free_space_step: 2,
             max_free_space_fraction: 0.05,
             deform: DeformConfig::default(),
+            global: GlobalConfig::default(),
         }
     }
 }
