@@ -6,6 +6,11 @@
 //! - `ferns` (global): a keyframe database of compact whole-image codes
 //!   (randomised ferns, Glocker et al. 2015) to find a revisited place when
 //!   drift is too large for the local check, and to relocalise a lost camera.
+//! - `global`: every few frames when the local check accepted nothing, the
+//!   frame is registered against the old map as a keyframe older than the
+//!   active window saw it (relocalisation's checks, a bounded correction, a
+//!   cooldown after a closure); a match bends the map like a local closure,
+//!   the old part pinned.
 //! - `deformation`: an embedded deformation graph that bends every surfel and
 //!   every past pose to satisfy the constraints an accepted closure gives.
 //!
