@@ -329,17 +329,25 @@ struct Match {
 }
 
 fn real_run(dir: &std::path::Path, global: bool, both_ways: bool) -> RealRun {
-    use surfel_slam::dataset::{read_frame, Sequence};
-    let sequence = Sequence::open(dir).expect("sequence opens");
-    let mut config = SlamConfig::from_preset(sequence.preset);
-    config.loop_closure.global.enabled = global;
-    let mut slam = Pipeline::new(config.clone()).expect("config");
-    let n = sequence.frames.len();
+    let n = surfel_slam::dataset::Sequence::open(dir)
+        .expect("sequence opens")
+        .frames
+        .len();
     let order: Vec<usize> = if both_ways {
         (0..n).chain((0..n).rev()).collect()
     } else {
         (0..n).collect()
     };
+    real_run_in(dir, global, &order)
+}
+
+/// [`real_run`] of the frames in `order`.
+fn real_run_in(dir: &std::path::Path, global: bool, order: &[usize]) -> RealRun {
+    use surfel_slam::dataset::{read_frame, Sequence};
+    let sequence = Sequence::open(dir).expect("sequence opens");
+    let mut config = SlamConfig::from_preset(sequence.preset);
+    config.loop_closure.global.enabled = global;
+    let mut slam = Pipeline::new(config.clone()).expect("config");
     let mut truth = Vec::new();
     let mut reports = Vec::new();
     for (position, &j) in order.iter().enumerate() {
@@ -551,4 +559,46 @@ fn the_slide_of_the_noisy_loop_is_closed_globally() {
         closed_map.rms_m < open_map.rms_m,
         "{closed_map:?} vs {open_map:?}"
     );
+}
+
+/// Teddy played forwards and backwards for 1500 frames (issue #21's long
+/// run), with and without the global check; a measurement (minutes):
+/// `cargo test --test global_loop teddy_ping_pong -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn teddy_ping_pong_1500_frames() {
+    let Some(dir) = common::shared_dataset("tum_fr3_teddy") else {
+        return;
+    };
+    let n = surfel_slam::dataset::Sequence::open(&dir)
+        .expect("sequence opens")
+        .frames
+        .len();
+    let order: Vec<usize> = (0..n).chain((1..n - 1).rev()).cycle().take(1500).collect();
+    for global in [false, true] {
+        let run = real_run_in(&dir, global, &order);
+        let looks = run.looked.iter().filter(|l| **l).count();
+        let closed = run.matches.iter().filter(|m| m.closure.closed).count();
+        println!(
+            "teddy 1500 frames, global {global}: ATE {:.3} cm, lost {}, {looks} looks, {} matches, {closed} closures",
+            run.ate_m * 100.0,
+            run.lost,
+            run.matches.len()
+        );
+        for m in &run.matches {
+            println!(
+                "  frame {}: keyframe {}, correction {:.2} cm {:.2} deg, closed {}; tracked {:.2} cm {:.2} deg, \
+                 registered {:.2} cm {:.2} deg off the truth relative to the keyframe",
+                m.frame,
+                m.closure.keyframe_frame,
+                m.closure.correction_m * 100.0,
+                m.closure.correction_deg,
+                m.closure.closed,
+                m.tracked.0 * 100.0,
+                m.tracked.1,
+                m.registered.0 * 100.0,
+                m.registered.1
+            );
+        }
+    }
 }
