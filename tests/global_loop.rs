@@ -562,7 +562,9 @@ fn the_slide_of_the_noisy_loop_is_closed_globally() {
 }
 
 /// Teddy played forwards and backwards for 1500 frames (issue #21's long
-/// run), with and without the global check; a measurement (minutes):
+/// run), with and without the global check; a measurement (minutes). It
+/// shows why the check is off by default: a wrong closure at frame 590
+/// (keyframe 166, 10.6 cm 6.3 degrees), ATE 0.90 -> 2.76 cm.
 /// `cargo test --test global_loop teddy_ping_pong -- --ignored --nocapture`.
 #[test]
 #[ignore]
