@@ -4,14 +4,26 @@
 //! and the current pose with an embedded deformation graph, and reactivate
 //! the inactive surfels that were matched so that fusion merges the two
 //! copies of the revisited surfaces.
+//!
+//! When the local check did not accept a correction (none ran, or the drift
+//! is too large for it), every `GlobalConfig::every_frames` frames the
+//! frame is looked up among the keyframes older than the active window
+//! (`global`): a verified match gives constraints (the frame's points, from
+//! where the tracked pose put them to where the registered pose puts them)
+//! and pins (the inactive surfels the keyframe's view shows stay), bent
+//! with the same graph: the old map stays, the drifted recent part moves.
 
 use crate::camera::Intrinsics;
 use crate::fusion::{FusionConfig, Measured, Prediction, SurfelMap};
+use crate::preprocess::FramePyramid;
 use crate::track::verify::VerifyConfig;
+use crate::track::{TrackerConfig, TrackerWorkspace};
 use glam::{DAffine3, Vec3};
 
 use super::deformation::{Constraint, DeformError, DeformReport, DeformationGraph};
+use super::global::{constraints_into, find_global_match, GlobalClosure, GlobalMatch};
 use super::local::{ModelRegistration, Registration};
+use super::relocalise::{Model, Relocaliser, Trackers};
 use super::LoopClosureConfig;
 
 /// What the stage did on one frame.
@@ -30,6 +42,11 @@ pub struct LoopOutcome {
     pub deform_error: Option<DeformError>,
     /// Inactive surfels made active again.
     pub reactivated: usize,
+    /// The global check looked the frame up among the old keyframes.
+    pub global_looked: bool,
+    /// A verified match with a place seen long ago; `closed` (here and in
+    /// the summary) when the map was bent by it.
+    pub global: Option<GlobalClosure>,
 }
 
 /// Everything the stage needs from the pipeline for one frame.
@@ -51,6 +68,23 @@ pub struct LoopFrame<'a> {
     pub verify: &'a VerifyConfig,
 }
 
+/// What the global check needs beyond [`LoopFrame`]: the keyframe database
+/// (with this frame encoded), the frame, and the trackers that register it.
+#[derive(Debug)]
+pub struct GlobalLook<'a> {
+    /// Keyframes; this frame was encoded (`Relocaliser::encode`) and is
+    /// not yet remembered.
+    pub relocaliser: &'a mut Relocaliser,
+    /// The frame fused at the tracked pose (camera frame, metres).
+    pub pyramid: &'a FramePyramid,
+    /// The pipeline's tracker, whose verdict a registration must pass.
+    pub normal: &'a TrackerConfig,
+    /// The re-acquisition search (wide gates) that finds the start.
+    pub wide: &'a TrackerConfig,
+    /// The trackers' buffers.
+    pub workspace: &'a mut TrackerWorkspace,
+}
+
 /// The loop-closure stage: owns its predictions, registration buffers,
 /// constraints and the last deformation graph.
 #[derive(Debug)]
@@ -60,10 +94,14 @@ pub struct LoopCloser {
     inactive: Prediction,
     registration: ModelRegistration,
     constraints: Vec<Constraint>,
+    /// Frame points of a global match: (tracked, registered), world frame.
+    pairs: Vec<(Vec3, Vec3)>,
     /// Inactive surfels matched by the last accepted registration.
     matched: Vec<usize>,
     graph: Option<DeformationGraph>,
     closures: u32,
+    /// Frame of the last global closure.
+    last_global: Option<u32>,
 }
 
 impl LoopCloser {
@@ -76,9 +114,11 @@ impl LoopCloser {
             inactive: Prediction::new(false),
             registration: ModelRegistration::default(),
             constraints: Vec::new(),
+            pairs: Vec::new(),
             matched: Vec::new(),
             graph: None,
             closures: 0,
+            last_global: None,
         }
     }
 
@@ -102,6 +142,7 @@ impl LoopCloser {
         self.matched.clear();
         self.graph = None;
         self.closures = 0;
+        self.last_global = None;
     }
 
     /// A `world_from_camera` pose of frame `time` moved by the last closure
@@ -116,19 +157,41 @@ impl LoopCloser {
 
     /// Runs the stage after frame `frame.now` was fused at `pose`: may move
     /// every surfel of `map`, every pose of `trajectory` (entry `i` is frame
-    /// `i`, `world_from_camera`) and `pose`.
+    /// `i`, `world_from_camera`) and `pose`. The local check first; the
+    /// global one (when `global` is given and enabled) on the frames it
+    /// looks at unless the local check accepted a correction.
     pub fn run(
         &mut self,
         map: &mut SurfelMap,
         trajectory: &mut [(f64, DAffine3)],
         pose: &mut DAffine3,
         frame: &LoopFrame<'_>,
+        global: Option<GlobalLook<'_>>,
     ) -> LoopOutcome {
         let mut outcome = LoopOutcome::default();
-        let every = self.config.every_frames.max(1);
-        if !self.config.enabled || frame.now % every != 0 || map.is_empty() {
+        if !self.config.enabled || map.is_empty() || frame.fusion.inactive_at(frame.now).is_empty()
+        {
             return outcome;
         }
+        if frame.now % self.config.every_frames.max(1) == 0 {
+            self.run_local(map, trajectory, pose, frame, &mut outcome);
+        }
+        let local_accepted = outcome.registration.is_some_and(|r| r.accepted());
+        if let (false, Some(look)) = (local_accepted, global) {
+            self.run_global(map, trajectory, pose, frame, look, &mut outcome);
+        }
+        outcome
+    }
+
+    /// The local (model-to-model) check, see the module documentation.
+    fn run_local(
+        &mut self,
+        map: &mut SurfelMap,
+        trajectory: &mut [(f64, DAffine3)],
+        pose: &mut DAffine3,
+        frame: &LoopFrame<'_>,
+        outcome: &mut LoopOutcome,
+    ) {
         let k = frame.intrinsics;
         let now = frame.now;
         let band = (frame.fusion.depth_gate_m, frame.far_m);
@@ -138,14 +201,11 @@ impl LoopCloser {
         // The inactive model first: most frames see none, and then the
         // active one is not rendered at all.
         let inactive = fusion.inactive_at(now);
-        if inactive.is_empty() {
-            return outcome;
-        }
         self.inactive
             .render(map_ref, pose, k, band, frame.measured, inactive, predicts);
         let min_overlap = (self.config.min_overlap_fraction * k.pixel_count() as f64) as usize;
         if self.inactive.valid < min_overlap.max(1) {
-            return outcome;
+            return;
         }
         self.active.render(
             map_ref,
@@ -161,7 +221,7 @@ impl LoopCloser {
                 .register(&self.active, &self.inactive, &self.config, frame.verify);
         outcome.registration = Some(registration);
         if !registration.accepted() {
-            return outcome;
+            return;
         }
         self.collect_matches(map, &registration);
         if registration.moves_map(&self.config) {
@@ -173,7 +233,7 @@ impl LoopCloser {
                 }
                 Err(e) => {
                     outcome.deform_error = Some(e);
-                    return outcome;
+                    return;
                 }
             }
         } else {
@@ -183,7 +243,190 @@ impl LoopCloser {
             map.touch(i, now);
         }
         outcome.reactivated = self.matched.len();
-        outcome
+    }
+
+    /// The global check (see the module documentation): look the frame up
+    /// among the old keyframes, register it against the inactive model as
+    /// the keyframe saw it, and on a verified match bend the map.
+    fn run_global(
+        &mut self,
+        map: &mut SurfelMap,
+        trajectory: &mut [(f64, DAffine3)],
+        pose: &mut DAffine3,
+        frame: &LoopFrame<'_>,
+        look: GlobalLook<'_>,
+        outcome: &mut LoopOutcome,
+    ) {
+        let config = self.config.global;
+        let now = frame.now;
+        let resting = self
+            .last_global
+            .is_some_and(|t| now.saturating_sub(t) < config.cooldown_frames);
+        if !config.looks_at(now) || resting {
+            return;
+        }
+        outcome.global_looked = true;
+        let found = {
+            let map_ref = &*map;
+            let (fusion, fused) = (frame.fusion, frame.fused);
+            // The old map: surfels created before the keyframes looked at.
+            // Those created since are the drifted copy of the place; old
+            // surfels seen again since (active again after a closure) are
+            // kept, else the leftovers a closure did not reactivate would
+            // be all the model shows there.
+            let before = now.saturating_sub(config.min_age_frames);
+            let first_seen = map_ref.first_seen();
+            find_global_match(
+                look.relocaliser,
+                look.pyramid,
+                Model {
+                    map: map_ref,
+                    seen: 0..u32::MAX,
+                    include: |i| {
+                        fusion.predicts(map_ref, i, fused)
+                            && first_seen.get(i).is_some_and(|&t| t < before)
+                    },
+                    far_m: frame.far_m,
+                },
+                Trackers {
+                    normal: look.normal,
+                    wide: look.wide,
+                    min_conditioning: config.min_conditioning,
+                },
+                look.workspace,
+                (pose, now),
+                &config,
+            )
+        };
+        let Some(found) = found else {
+            return;
+        };
+        let view = look.relocaliser.keyframe_view();
+        let inactive_before = frame.fusion.active_at(now).start;
+        self.collect_global(map, &found, view, look.pyramid, (now, inactive_before));
+        match self.bend(map, trajectory, pose, now) {
+            Ok(report) => {
+                outcome.closed = true;
+                outcome.deform = Some(report);
+                outcome.global = Some(GlobalClosure::of(&found, true));
+                self.closures += 1;
+                self.last_global = Some(now);
+            }
+            Err(e) => {
+                outcome.deform_error = Some(e);
+                outcome.global = Some(GlobalClosure::of(&found, false));
+                return;
+            }
+        }
+        self.collect_seen(map, view, look.pyramid, pose, frame.verify);
+        for &i in &self.matched {
+            map.touch(i, now);
+        }
+        outcome.reactivated = self.matched.len();
+    }
+
+    /// Constraints of a global match: the frame's points (observed now)
+    /// carried from where the tracked pose put them to where the registered
+    /// pose puts them, and pins on the surfels `view` (the model as the
+    /// keyframe saw it) shows that were last seen before `inactive_before`,
+    /// at their own times.
+    fn collect_global(
+        &mut self,
+        map: &SurfelMap,
+        found: &GlobalMatch,
+        view: &Prediction,
+        pyramid: &FramePyramid,
+        (now, inactive_before): (u32, u32),
+    ) {
+        self.constraints.clear();
+        self.matched.clear();
+        self.pairs.clear();
+        let step = self.config.global.constraint_step.max(1);
+        if let Some((level, k)) = pyramid
+            .levels
+            .first()
+            .and_then(|l| Some((l, l.intrinsics?)))
+        {
+            constraints_into(found, &level.vertices, k.width, step, &mut self.pairs);
+        }
+        self.constraints.extend(
+            self.pairs
+                .iter()
+                .map(|&(source, target)| Constraint::new(source, target, now)),
+        );
+        let Some(k) = view.intrinsics else {
+            return;
+        };
+        let (positions, last_seen) = (map.positions(), map.last_seen());
+        // Only surfels the graph moves with old nodes can be pinned: an old
+        // surfel seen again lately moves with the recent part.
+        let inactive = inactive_before;
+        for v in (0..k.height).step_by(step) {
+            for u in (0..k.width).step_by(step) {
+                let pixel = v * k.width + u;
+                if view.normals.get(pixel).is_none_or(|n| *n == Vec3::ZERO) {
+                    continue;
+                }
+                let Some(b) = view.surfel_at_pixel(pixel) else {
+                    continue;
+                };
+                if let (Some(&p), Some(&t)) = (positions.get(b), last_seen.get(b)) {
+                    if t < inactive {
+                        self.constraints.push(Constraint::pin(p, t));
+                    }
+                }
+            }
+        }
+    }
+
+    /// The inactive surfels of `view` that the frame (`pyramid`, finest
+    /// level), at the corrected `pose`, measures where they lie (within the
+    /// free-space margins of `verify`): the old copy of what the camera
+    /// sees, to reactivate so that fusion merges the two.
+    fn collect_seen(
+        &mut self,
+        map: &SurfelMap,
+        view: &Prediction,
+        pyramid: &FramePyramid,
+        pose: &DAffine3,
+        verify: &VerifyConfig,
+    ) {
+        self.matched.clear();
+        let Some((level, k)) = pyramid
+            .levels
+            .first()
+            .and_then(|l| Some((l, l.intrinsics?)))
+        else {
+            return;
+        };
+        if level.vertices.len() != k.pixel_count() {
+            return;
+        }
+        let camera_from_world = pose.inverse().as_affine3a();
+        let positions = map.positions();
+        for (pixel, normal) in view.normals.iter().enumerate() {
+            if *normal == Vec3::ZERO {
+                continue;
+            }
+            let Some(b) = view.surfel_at_pixel(pixel) else {
+                continue;
+            };
+            let Some(&p) = positions.get(b) else {
+                continue;
+            };
+            let q = camera_from_world.transform_point3(p);
+            if q.z <= 0.0 {
+                continue;
+            }
+            let Some(at) = k.pixel_index(k.project(q)) else {
+                continue;
+            };
+            let z = level.vertices[at].z;
+            let margin = verify.free_space_margin_m + verify.free_space_margin_rel * q.z;
+            if z > 0.0 && (z - q.z).abs() <= margin {
+                self.matched.push(b);
+            }
+        }
     }
 
     /// Fills the constraints (sampled active points: where they are, where

@@ -36,8 +36,23 @@ pub struct GlobalConfig {
     pub min_correction_m: f64,
     /// ... and this rotation, degrees.
     pub min_correction_deg: f64,
-    /// Constraints are taken every this many pixels (each way) of the
-    /// frame's coarsest pyramid level.
+    /// A correction larger than this is refused, metres: a tracker whose
+    /// checks passed every frame does not drift that far between looks ...
+    pub max_correction_m: f64,
+    /// ... nor this rotation, degrees.
+    pub max_correction_deg: f64,
+    /// After a global closure, no look for this many frames: the local
+    /// check keeps the revisited part aligned, and the old model there,
+    /// now a blend of the two copies, would only give small corrections
+    /// of its own blending.
+    pub cooldown_frames: u32,
+    /// The normal tracker's final system against the old model must be at
+    /// least this well conditioned (the pipeline's re-acquisition bound:
+    /// without a prior pose, ICP on one or two planes slides).
+    pub min_conditioning: f64,
+    /// Constraints (frame points) and pins (inactive surfels the
+    /// keyframe's view shows) are taken every this many pixels, each way,
+    /// of the working image.
     pub constraint_step: usize,
 }
 
@@ -47,8 +62,12 @@ impl Default for GlobalConfig {
             enabled: true,
             min_age_frames: 200,
             every_frames: 10,
-            min_correction_m: 0.01,
-            min_correction_deg: 1.0,
+            min_correction_m: 0.03,
+            min_correction_deg: 2.0,
+            cooldown_frames: 200,
+            max_correction_m: 1.0,
+            max_correction_deg: 30.0,
+            min_conditioning: 2e-3,
             constraint_step: 8,
         }
     }
@@ -78,9 +97,9 @@ impl GlobalMatch {
 /// Looks for a place seen before frame `now - config.min_age_frames` in
 /// the frame encoded in `relocaliser` (`pyramid`, tracked at `tracked`,
 /// frame `now`); `model` should hold the inactive surfels only. `None` on
-/// the frames it does not look at, when no old keyframe looks like the
-/// frame, when no registration passes, or when the correction is below
-/// the minimum.
+/// the frames it does not look at ([`GlobalConfig::looks_at`]), when no
+/// old keyframe looks like the frame, when no registration passes, or when
+/// the correction is below the minimum or above the maximum.
 pub fn find_global_match<F: Fn(usize) -> bool + Sync>(
     relocaliser: &mut Relocaliser,
     pyramid: &FramePyramid,
@@ -90,18 +109,65 @@ pub fn find_global_match<F: Fn(usize) -> bool + Sync>(
     (tracked, now): (&DAffine3, u32),
     config: &GlobalConfig,
 ) -> Option<GlobalMatch> {
-    let before = now.checked_sub(config.min_age_frames)?;
-    if !config.enabled || now % config.every_frames.max(1) != 0 || !tracked.is_finite() {
+    if !config.looks_at(now) || !tracked.is_finite() {
         return None;
     }
+    let before = now.checked_sub(config.min_age_frames)?;
     let registration = relocaliser.place(pyramid, model, trackers, workspace, before)?;
     let found = GlobalMatch {
         registration,
         tracked: *tracked,
         correction: registration.world_from_camera * tracked.inverse(),
     };
-    let (dt, dr) = found.magnitude();
-    (dt >= config.min_correction_m || dr.to_degrees() >= config.min_correction_deg).then_some(found)
+    let (dt, dr) = (found.magnitude().0, found.magnitude().1.to_degrees());
+    let large = dt >= config.min_correction_m || dr >= config.min_correction_deg;
+    let plausible = dt <= config.max_correction_m && dr <= config.max_correction_deg;
+    (large && plausible).then_some(found)
+}
+
+impl GlobalConfig {
+    /// Whether frame `now` is looked up: the check is on, it is one of
+    /// every `every_frames`, and keyframes old enough can exist.
+    #[must_use]
+    pub fn looks_at(&self, now: u32) -> bool {
+        self.enabled && now % self.every_frames.max(1) == 0 && now >= self.min_age_frames
+    }
+}
+
+/// A global closure as the frame report shows it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GlobalClosure {
+    /// Frame index of the keyframe whose place the frame was registered in.
+    pub keyframe_frame: u32,
+    /// The pose the tracker gave the frame (`world_from_camera`, metres,
+    /// before the closure).
+    pub tracked: DAffine3,
+    /// The pose registered against the old model (`world_from_camera`,
+    /// metres, in the map as it was before the closure).
+    pub registered: DAffine3,
+    /// Translation of the correction, metres.
+    pub correction_m: f64,
+    /// Rotation of the correction, degrees.
+    pub correction_deg: f64,
+    /// The deformation graph accepted the constraints and the map was
+    /// bent; `false` when it refused them (nothing moved).
+    pub closed: bool,
+}
+
+impl GlobalClosure {
+    /// The summary of `found`; `closed` as given.
+    #[must_use]
+    pub fn of(found: &GlobalMatch, closed: bool) -> Self {
+        let (dt, dr) = found.magnitude();
+        Self {
+            keyframe_frame: found.registration.keyframe_frame,
+            tracked: found.tracked,
+            registered: found.registration.world_from_camera,
+            correction_m: dt,
+            correction_deg: dr.to_degrees(),
+            closed,
+        }
+    }
 }
 
 /// Surface constraints of a global match: for points of the frame

@@ -179,6 +179,15 @@ impl Relocaliser {
         &mut self.database
     }
 
+    /// The model as the keyframe of the last successful [`Self::place`] (or
+    /// [`Self::relocalise`]) saw it, rendered from that keyframe's pose:
+    /// which surfels a global loop closure pins. After a failed look it
+    /// holds the last keyframe tried.
+    #[must_use]
+    pub fn keyframe_view(&self) -> &Prediction {
+        &self.prediction
+    }
+
     /// Forgets every keyframe.
     pub fn clear(&mut self) {
         self.database.clear();

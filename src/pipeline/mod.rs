@@ -25,7 +25,7 @@ use crate::fusion::{
     remove_unstable, FusionStats, Integrator, Measured, Prediction, SpatialOrder, SurfelMap,
 };
 use crate::loop_closure::relocalise::Relocaliser;
-use crate::loop_closure::{LoopCloser, LoopFrame, LoopOutcome};
+use crate::loop_closure::{GlobalLook, LoopCloser, LoopFrame, LoopOutcome};
 use crate::preprocess::{half_resolution_into, FramePyramid};
 use crate::track::verify::TrackingChecks;
 use crate::track::{TrackerConfig, TrackerMode, TrackerWorkspace};
@@ -243,6 +243,8 @@ impl Pipeline {
         let mut report = self.report(index, timestamp, &tracked, fusion, timings);
         report.loop_closed = closure.closed;
         report.loop_registration = closure.registration;
+        report.loop_global_looked = closure.global_looked;
+        report.loop_global = closure.global;
         Ok(report)
     }
 
@@ -334,15 +336,31 @@ impl Pipeline {
             fused: self.counts.tracked + self.counts.recovered,
             verify: &self.config.tracker.verify,
         };
-        let outcome = self
-            .loop_closer
-            .run(&mut self.map, &mut self.trajectory, pose, &frame);
+        let global = GlobalLook {
+            relocaliser: &mut self.relocaliser,
+            pyramid: &self.pyramid,
+            normal: &self.config.tracker,
+            wide: &self.recovery,
+            workspace: &mut self.tracker,
+        };
+        let outcome = self.loop_closer.run(
+            &mut self.map,
+            &mut self.trajectory,
+            pose,
+            &frame,
+            Some(global),
+        );
         if outcome.closed {
             // The trajectory's last entry is the last good pose, or (after
             // lost frames) a copy of it held.
             if let Some(&(_, last)) = self.trajectory.last() {
                 self.last_good = Some(last);
             }
+            // Keyframes are placed in the map they were seen in.
+            let closer = &self.loop_closer;
+            self.relocaliser
+                .database_mut()
+                .update_poses(|frame, p| closer.deform_pose(p, frame));
         }
         outcome
     }
@@ -432,6 +450,8 @@ impl Pipeline {
             loop_closures: self.loop_closer.closures(),
             loop_closed: false,
             loop_registration: None,
+            loop_global_looked: false,
+            loop_global: None,
             timings,
         }
     }

@@ -1,6 +1,7 @@
 //! What the pipeline says about each frame: verdict, counts, timings.
 
 use crate::fusion::FusionStats;
+use crate::loop_closure::global::GlobalClosure;
 use crate::loop_closure::local::Registration;
 use crate::track::verify::TrackingChecks;
 use crate::track::LostReason;
@@ -113,6 +114,11 @@ pub struct FrameReport {
     /// The model-to-model registration this frame ran (when the view
     /// overlapped the inactive model), accepted or not.
     pub loop_registration: Option<Registration>,
+    /// The global loop check looked this frame up among the old keyframes.
+    pub loop_global_looked: bool,
+    /// This frame matched a place seen long ago (the global check);
+    /// `loop_closed` is set too when the map was bent by it.
+    pub loop_global: Option<GlobalClosure>,
     /// Stage timings.
     pub timings: StageTimings,
 }
