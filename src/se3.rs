@@ -388,6 +388,23 @@ fn cholesky_solve(mut m: [[f64; 6]; 6], rhs: [f64; 6]) -> Option<Twist> {
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
+/// A nalgebra 3x3 matrix as a glam one (the same matrix; nalgebra indexes
+/// `(row, column)`, glam stores columns): for the SVD-based rotation fits.
+#[must_use]
+pub fn dmat3_from_nalgebra(m: &nalgebra::Matrix3<f64>) -> DMat3 {
+    DMat3::from_cols_array(&[
+        m[(0, 0)],
+        m[(1, 0)],
+        m[(2, 0)],
+        m[(0, 1)],
+        m[(1, 1)],
+        m[(2, 1)],
+        m[(0, 2)],
+        m[(1, 2)],
+        m[(2, 2)],
+    ])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,7 +3,7 @@
 //! inliers.
 
 use super::orb::SplitMix;
-use glam::{DAffine3, DMat3, DVec3, Vec3};
+use glam::{DAffine3, DVec3, Vec3};
 use nalgebra::Matrix3;
 
 /// Settings of [`ransac_rigid`].
@@ -87,17 +87,7 @@ pub fn fit_rigid(pairs: impl Iterator<Item = (DVec3, DVec3)> + Clone) -> Option<
         d[(2, 2)] = -1.0;
     }
     let r = v * d * u.transpose();
-    let rotation = DMat3::from_cols_array(&[
-        r[(0, 0)],
-        r[(1, 0)],
-        r[(2, 0)],
-        r[(0, 1)],
-        r[(1, 1)],
-        r[(2, 1)],
-        r[(0, 2)],
-        r[(1, 2)],
-        r[(2, 2)],
-    ]);
+    let rotation = crate::se3::dmat3_from_nalgebra(&r);
     let translation = ca - rotation * cb;
     let t = DAffine3::from_mat3_translation(rotation, translation);
     t.is_finite().then_some(t)

@@ -172,31 +172,41 @@ impl ModelRegistration {
         config: &LoopClosureConfig,
         verify: &VerifyConfig,
     ) -> Registration {
-        let (Some(k), Some(k_inactive)) = (active.intrinsics, inactive.intrinsics) else {
+        let Some(n) = comparable_pixels(active, inactive) else {
             return Registration::rejected(Rejection::TooLittleOverlap, 0);
         };
-        let n = k.pixel_count();
-        if k != k_inactive
-            || active.vertices.len() != n
-            || inactive.vertices.len() != n
-            || active.normals.len() != n
-            || inactive.normals.len() != n
-        {
-            return Registration::rejected(Rejection::TooLittleOverlap, 0);
-        }
-        let overlap = active
-            .normals
-            .iter()
-            .zip(&inactive.normals)
-            .filter(|(a, b)| **a != Vec3::ZERO && **b != Vec3::ZERO)
-            .count();
-        let of_image = |fraction: f64| ((fraction * n as f64).ceil() as usize).max(6);
-        if overlap < of_image(config.min_overlap_fraction) {
+        let overlap = overlap_of(active, inactive);
+        if overlap < of_image(config.min_overlap_fraction, n) {
             return Registration::rejected(Rejection::TooLittleOverlap, overlap);
         }
         let view = inactive.world_from_camera;
         to_camera_frame(inactive, &mut self.target);
-        let mut camera_from_world = view.inverse();
+        let (camera_from_world, start_residual_rms_m) = self.align(active, view.inverse(), config);
+        if !(view * camera_from_world).is_finite() {
+            return Registration::rejected(Rejection::Degenerate, overlap);
+        }
+        let mut result = self.evaluate(active, (view, &camera_from_world), config, overlap);
+        result.start_residual_rms_m = start_residual_rms_m;
+        result.rejected = judge(&result, config, n);
+        if result.rejected.is_none() {
+            result.free_space = self.free_space(active, inactive, &result, config, verify);
+            if result.free_space > config.max_free_space_fraction {
+                result.rejected = Some(Rejection::FreeSpace);
+            }
+        }
+        result
+    }
+
+    /// Gauss-Newton point-to-plane ICP of `active` onto the target, from
+    /// `camera_from_world`, coarse to fine on the source grid (the target
+    /// stays full resolution). Returns the estimate and the RMS residual
+    /// before the first step (metres).
+    fn align(
+        &self,
+        active: &Prediction,
+        mut camera_from_world: DAffine3,
+        config: &LoopClosureConfig,
+    ) -> (DAffine3, f64) {
         let start = icp_step(
             active,
             1,
@@ -206,7 +216,6 @@ impl ModelRegistration {
             None,
         );
         let start_residual_rms_m = (start.system.cost / start.system.count.max(1) as f64).sqrt();
-        // Coarse to fine on the source grid: the target stays full resolution.
         for (level, &iterations) in config.iterations.iter().enumerate().rev() {
             let stride = 1usize << level;
             for _ in 0..iterations {
@@ -224,21 +233,30 @@ impl ModelRegistration {
                 }
             }
         }
-        let correction = view * camera_from_world;
-        if !correction.is_finite() {
-            return Registration::rejected(Rejection::Degenerate, overlap);
-        }
-        let t = RigidF32::from_affine(&camera_from_world);
+        (camera_from_world, start_residual_rms_m)
+    }
+
+    /// The statistics of a dense evaluation at the final estimate (not yet judged).
+    /// `(view, camera_from_world)`: the pose the models were rendered from
+    /// and the estimate.
+    fn evaluate(
+        &self,
+        active: &Prediction,
+        (view, camera_from_world): (DAffine3, &DAffine3),
+        config: &LoopClosureConfig,
+        overlap: usize,
+    ) -> Registration {
+        let t = RigidF32::from_affine(camera_from_world);
         let last = icp_step(active, 1, &self.target, &t, &config.gates, None);
         let system = &last.system;
         let inliers = system.count;
-        let mut result = Registration {
-            correction,
+        Registration {
+            correction: view * *camera_from_world,
             overlap,
             inliers,
             inlier_ratio: (inliers as f64 / overlap as f64).min(1.0),
             residual_rms_m: (system.cost / inliers.max(1) as f64).sqrt(),
-            start_residual_rms_m,
+            start_residual_rms_m: 0.0,
             conditioning: if inliers >= 6 {
                 system.conditioning()
             } else {
@@ -246,26 +264,22 @@ impl ModelRegistration {
             },
             free_space: 0.0,
             rejected: None,
-        };
-        let (dt, dr) = result.magnitude();
-        result.rejected = if inliers < of_image(config.min_inlier_fraction)
-            || result.inlier_ratio < config.min_inlier_ratio
-        {
-            Some(Rejection::TooFewInliers)
-        } else if result.conditioning < config.min_conditioning {
-            Some(Rejection::IllConditioned)
-        } else if result.residual_rms_m > config.max_residual_m {
-            Some(Rejection::HighResidual)
-        } else if dt > config.max_correction_m || dr > config.max_correction_deg {
-            Some(Rejection::TooLarge)
-        } else {
-            None
-        };
-        if result.rejected.is_some() {
-            return result;
         }
-        // Both directions: corrected active points must not lie in front of
-        // the inactive surface, nor inactive points in front of the active one.
+    }
+
+    /// Free-space violation of the corrected models, the larger of the two
+    /// directions: corrected active points must not lie in front of the
+    /// inactive surface, nor inactive points in front of the active one.
+    fn free_space(
+        &mut self,
+        active: &Prediction,
+        inactive: &Prediction,
+        result: &Registration,
+        config: &LoopClosureConfig,
+        verify: &VerifyConfig,
+    ) -> f64 {
+        let view = inactive.world_from_camera;
+        let correction = result.correction;
         let camera_from_world = RigidF32::from_affine(&view.inverse());
         self.active_points.clear();
         self.active_points.extend(
@@ -296,10 +310,49 @@ impl ModelRegistration {
             &(correction.inverse() * view),
             verify,
         );
-        result.free_space = forward.max(backward);
-        if result.free_space > config.max_free_space_fraction {
-            result.rejected = Some(Rejection::FreeSpace);
-        }
-        result
+        forward.max(backward)
+    }
+}
+
+/// The pixel count of the two predictions when they can be compared (same
+/// intrinsics, full maps), else `None`.
+fn comparable_pixels(active: &Prediction, inactive: &Prediction) -> Option<usize> {
+    let (k, k_inactive) = (active.intrinsics?, inactive.intrinsics?);
+    let n = k.pixel_count();
+    let full = |p: &Prediction| p.vertices.len() == n && p.normals.len() == n;
+    (k == k_inactive && full(active) && full(inactive)).then_some(n)
+}
+
+/// Pixels where both predictions show a surfel.
+fn overlap_of(active: &Prediction, inactive: &Prediction) -> usize {
+    active
+        .normals
+        .iter()
+        .zip(&inactive.normals)
+        .filter(|(a, b)| **a != Vec3::ZERO && **b != Vec3::ZERO)
+        .count()
+}
+
+/// `fraction` of an image of `n` pixels, at least 6 (a 6-dof solve).
+fn of_image(fraction: f64, n: usize) -> usize {
+    ((fraction * n as f64).ceil() as usize).max(6)
+}
+
+/// Why `result` is refused by `config`'s thresholds before the free-space
+/// check (`n`: pixels of the image), or `None`.
+fn judge(result: &Registration, config: &LoopClosureConfig, n: usize) -> Option<Rejection> {
+    let (dt, dr) = result.magnitude();
+    if result.inliers < of_image(config.min_inlier_fraction, n)
+        || result.inlier_ratio < config.min_inlier_ratio
+    {
+        Some(Rejection::TooFewInliers)
+    } else if result.conditioning < config.min_conditioning {
+        Some(Rejection::IllConditioned)
+    } else if result.residual_rms_m > config.max_residual_m {
+        Some(Rejection::HighResidual)
+    } else if dt > config.max_correction_m || dr > config.max_correction_deg {
+        Some(Rejection::TooLarge)
+    } else {
+        None
     }
 }
