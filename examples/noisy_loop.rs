@@ -11,7 +11,6 @@
 //! `cargo run --release --example noisy_loop`
 
 use surfel_slam::eval::ate;
-use surfel_slam::frame::DepthSettings;
 use surfel_slam::synthetic::{self, loop_pose, NoiseModel, Scene};
 use surfel_slam::{CameraPreset, Pipeline, SlamConfig};
 
@@ -39,12 +38,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (name, noise) in settings {
         let mut config = SlamConfig::from_preset(CameraPreset::TumFr3);
         config.intrinsics = k;
-        config.depth = DepthSettings {
-            scale: synthetic::DEPTH_UNITS_PER_METRE,
-            min_m: 0.3,
-            max_m: 8.0,
-            invalid_raw: None,
-        };
+        config.depth = synthetic::depth_settings();
         let scene = Scene::room();
         let mut slam = Pipeline::new(config.clone())?;
         let origin = loop_pose(0, 240).inverse();

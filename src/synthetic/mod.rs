@@ -38,7 +38,9 @@ mod trajectory;
 pub use loop_path::loop_pose;
 pub use map_error::{map_error, MapError};
 pub use noise::{NoiseModel, StructuredLight};
-pub use render::{render, render_into, RenderedFrame, SyntheticError, DEPTH_UNITS_PER_METRE};
+pub use render::{
+    depth_settings, render, render_into, RenderedFrame, SyntheticError, DEPTH_UNITS_PER_METRE,
+};
 pub use scene::{Scene, SceneBox, ROOM_MAX, ROOM_MIN};
 pub use trajectory::{default_intrinsics, look_at, trajectory, trajectory_pose};
 
@@ -53,11 +55,6 @@ mod test_support {
     }
 
     pub(super) fn settings() -> DepthSettings {
-        DepthSettings {
-            scale: 5000.0,
-            min_m: 0.3,
-            max_m: 8.0,
-            invalid_raw: None,
-        }
+        super::depth_settings()
     }
 }

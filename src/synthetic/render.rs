@@ -17,6 +17,18 @@ use crate::frame::{Channel, DepthSettings, FrameError, RgbdFrame};
 /// Raw depth units per metre of [`RenderedFrame::depth_raw`] (TUM / ICL-NUIM convention).
 pub const DEPTH_UNITS_PER_METRE: f32 = 5000.0;
 
+/// How rendered raw depth reads back: [`DEPTH_UNITS_PER_METRE`], valid
+/// from 0.3 to 8 m (the room's far corners lie within 8 m of any pose).
+#[must_use]
+pub const fn depth_settings() -> DepthSettings {
+    DepthSettings {
+        scale: DEPTH_UNITS_PER_METRE,
+        min_m: 0.3,
+        max_m: 8.0,
+        invalid_raw: None,
+    }
+}
+
 /// Why a rendered frame could not be encoded.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum SyntheticError {

@@ -7,7 +7,7 @@ use glam::DAffine3;
 use std::path::{Path, PathBuf};
 use surfel_slam::dataset::{read_frame, Sequence};
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
-use surfel_slam::{DepthSettings, FrameReport, Intrinsics, Pipeline, SlamConfig, Verdict};
+use surfel_slam::{FrameReport, Intrinsics, Pipeline, SlamConfig, Verdict};
 
 /// A real dataset folder under ../shared/data, or `None` (with a message)
 /// when absent; panics when absent and `CI=true`.
@@ -34,12 +34,7 @@ pub fn shared_dataset(name: &str) -> Option<PathBuf> {
 pub fn synthetic_config(k: Intrinsics) -> SlamConfig {
     let mut config = SlamConfig::from_preset(surfel_slam::CameraPreset::TumFr3);
     config.intrinsics = k;
-    config.depth = DepthSettings {
-        scale: synthetic::DEPTH_UNITS_PER_METRE,
-        min_m: 0.3,
-        max_m: 8.0,
-        invalid_raw: None,
-    };
+    config.depth = synthetic::depth_settings();
     config
 }
 
