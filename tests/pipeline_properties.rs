@@ -297,7 +297,7 @@ fn check(slam: &Pipeline, model: &Model, at: &dyn Fn(&str) -> String) {
     let frames = slam.frames() as usize;
     assert_eq!(frames, model.accepted.len(), "{}", at("frames accepted"));
     assert_eq!(
-        (c.tracked + c.lost + c.recovered) as usize,
+        (c.tracked + c.lost + c.recovered + c.held) as usize,
         frames,
         "{}",
         at(&format!("verdict counts {c:?}"))

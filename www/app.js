@@ -23,6 +23,7 @@ const status = {
   framesProcessed: 0,
   framesLost: 0,
   framesRecovered: 0,
+  framesHeld: 0, // fused with some directions held at the motion prior
   framesFailed: 0,
   framesRelocalised: 0, // frames placed by relocalisation (report.relocalisedFrom set)
   relocalisedFrames: [], // their indices
@@ -145,6 +146,7 @@ function syncStatus() {
   status.framesProcessed = stats.framesProcessed;
   status.framesLost = stats.framesLost;
   status.framesRecovered = stats.framesRecovered;
+  status.framesHeld = stats.framesHeld;
   status.framesFailed = stats.framesFailed;
   status.framesRelocalised = stats.framesRelocalised;
   status.loopClosures = stats.loopClosures;

@@ -14,10 +14,15 @@ export const STAGE_COLOURS = {
   loop: '#ff6ad5',
   predict: '#ffd84a',
 };
-/** Verdict strip colours; 'relocalised' is a recovered frame placed from a keyframe. */
+/**
+ * Verdict strip colours, least to most alarming; 'held' is fused with some
+ * directions held at the motion prior, 'relocalised' a recovered frame
+ * placed from a keyframe.
+ */
 export const VERDICT_COLOURS = {
   tracked: '#2f8f5b',
   initialised: '#2f8f5b',
+  held: '#b5d33d',
   recovered: '#e0b23a',
   relocalised: '#3fc8ff',
   lost: '#e5484d',

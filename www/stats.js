@@ -28,6 +28,7 @@ export class Stats {
     this.framesTracked = 0;
     this.framesLost = 0;
     this.framesRecovered = 0;
+    this.framesHeld = 0;
     this.framesFailed = 0;
     this.surfels = 0;
     this.surfelSlots = 0;
@@ -58,6 +59,7 @@ export class Stats {
     this.framesProcessed++;
     if (r.verdict === 'lost') this.framesLost++;
     else if (r.verdict === 'recovered') this.framesRecovered++;
+    else if (r.verdict === 'held') this.framesHeld++;
     else this.framesTracked++;
     this.lastVerdict = r.verdict;
     this.lastLostReason = r.lostReason ?? null;
@@ -124,7 +126,10 @@ export class Stats {
     const rows = [
       ['frame', this.frameIndex >= 0 ? `${this.frameIndex + 1} / ${this.frameCount}` : '–'],
       ['processed', `${this.framesProcessed}`],
-      ['tracked / lost / recovered', `${this.framesTracked} / ${this.framesLost} / ${this.framesRecovered}`],
+      [
+        'tracked / held / lost / recovered',
+        `${this.framesTracked} / ${this.framesHeld} / ${this.framesLost} / ${this.framesRecovered}`,
+      ],
       [
         'relocalised',
         this.lastRelocalised

@@ -115,6 +115,7 @@ type PngPair = (Vec<u8>, Vec<u8>);
 struct Counts {
     lost: usize,
     recovered: usize,
+    held: usize,
     failed: usize,
 }
 
@@ -135,6 +136,7 @@ fn play(
             match report.verdict {
                 Verdict::Lost(_) => counts.lost += 1,
                 Verdict::Recovered => counts.recovered += 1,
+                Verdict::Held => counts.held += 1,
                 _ => {}
             }
             Some((
@@ -280,11 +282,12 @@ fn print_run(
     let Counts {
         lost,
         recovered,
+        held,
         failed,
     } = recording.counts;
     let size = slam.config().intrinsics;
     println!(
-        "{}: {} frames at {}x{}, {lost} lost, {recovered} recovered, {failed} unreadable, {} surfels, {} rayon threads",
+        "{}: {} frames at {}x{}, {lost} lost, {recovered} recovered, {held} held, {failed} unreadable, {} surfels, {} rayon threads",
         args.dataset.display(),
         total,
         size.width,

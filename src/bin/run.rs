@@ -326,12 +326,13 @@ fn print_summary(
         }
     };
     println!(
-        "{}: {} frames, {} tracked, {} lost, {} recovered, {failed} unreadable, {} loop closures, {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
+        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {failed} unreadable, {} loop closures, {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
         args.dataset.display(),
         frames,
         counts.tracked,
         counts.lost,
         counts.recovered,
+        counts.held,
         slam.loop_closures(),
         slam.map().live_len(),
     );

@@ -259,9 +259,12 @@ impl Relocaliser {
             &mut matches,
         );
         // The photometric term compares with the previous fused frame, which
-        // is not where the camera is now: geometry alone.
+        // is not where the camera is now: geometry alone. Nothing is held:
+        // the start (a keyframe's pose) is no motion prior, and the
+        // conditioning and free-space checks judge the view.
         let icp_only = |c: &TrackerConfig| TrackerConfig {
             mode: TrackerMode::Icp,
+            hold_below_eigenvalue: 0.0,
             ..c.clone()
         };
         let (normal, wide) = (icp_only(trackers.normal), icp_only(trackers.wide));

@@ -333,7 +333,7 @@ impl Pipeline {
             },
             fusion: &self.config.fusion,
             far_m: self.config.depth.max_m,
-            fused: self.counts.tracked + self.counts.recovered,
+            fused: self.counts.fused(),
             verify: &self.config.tracker.verify,
         };
         let global = GlobalLook {
@@ -375,7 +375,7 @@ impl Pipeline {
         let map = &self.map;
         // The warm-up counts fused frames: frames lost early must not end
         // it before the map had the frames to become stable.
-        let fused = self.counts.tracked + self.counts.recovered;
+        let fused = self.counts.fused();
         let far_m = self.config.depth.max_m;
         // The frame just fused was taken from `pose`: what it measured
         // hides what lies behind.
@@ -414,6 +414,10 @@ impl Pipeline {
             }
             Verdict::Recovered => {
                 self.counts.recovered += 1;
+                self.counts.lost_streak = 0;
+            }
+            Verdict::Held => {
+                self.counts.held += 1;
                 self.counts.lost_streak = 0;
             }
             Verdict::Initialised | Verdict::Tracked => {

@@ -26,12 +26,19 @@ pub(super) struct Tracked {
 }
 
 impl Tracked {
+    /// A `Tracked` verdict becomes `Held` when `result` held directions
+    /// (not when the pose is the sparse estimate alone, which pins all six).
     fn new(
         verdict: Verdict,
         pose: DAffine3,
         result: Option<TrackResult>,
         checks: TrackingChecks,
     ) -> Self {
+        let held = result.is_some_and(|r| r.held_directions > 0) && !checks.sparse_only;
+        let verdict = match verdict {
+            Verdict::Tracked if held => Verdict::Held,
+            other => other,
+        };
         Self {
             verdict,
             pose,
@@ -48,6 +55,13 @@ impl Tracked {
 /// tracked frame of TUM fr3/teddy >= 0.0079; a synthetic view of a wall and
 /// the floor that slid 22 cm on re-acquisition: 0.0005.
 const RECOVERY_MIN_CONDITIONING: f64 = 2e-3;
+
+/// Whether `result` pins all six degrees of freedom well enough to be
+/// trusted without the previous pose as a prior: well conditioned, and no
+/// direction held at its start.
+fn pins_pose(result: &TrackResult) -> bool {
+    result.conditioning >= RECOVERY_MIN_CONDITIONING && result.held_directions == 0
+}
 
 /// Re-acquisition search: gates wide enough to pull in a pose several
 /// frames' motion away (dropped frames, a fast turn), more iterations at the
@@ -208,7 +222,7 @@ impl Judge<'_> {
     /// Passed the tracker's own tests, finite, and (after a loss) from a
     /// view that pins all six degrees of freedom.
     fn passes(&self, r: &TrackResult) -> bool {
-        let pinned = self.lost_streak == 0 || r.conditioning >= RECOVERY_MIN_CONDITIONING;
+        let pinned = self.lost_streak == 0 || pins_pose(r);
         r.lost.is_none() && r.world_from_camera.is_finite() && pinned
     }
 
@@ -274,7 +288,7 @@ impl Judge<'_> {
         let landed = |pose: &DAffine3| {
             verify.landed_near(pose, &sparse_pose)
                 || (first.clean
-                    && first.result.conditioning >= RECOVERY_MIN_CONDITIONING
+                    && pins_pose(&first.result)
                     && verify.same_basin(pose, &first.result.world_from_camera))
         };
         if self.passes(&second) && landed(&second.world_from_camera) {
@@ -292,7 +306,7 @@ impl Judge<'_> {
         // keeps free space clear is then the better answer, unrefined.
         let strong = estimate.inliers >= verify.sparse_only_min_inliers
             && estimate.rms_m <= verify.sparse_only_max_rms_m;
-        if strong && second.conditioning < RECOVERY_MIN_CONDITIONING {
+        if strong && !pins_pose(&second) {
             let fraction = self.free_space(&sparse_pose);
             if self.free_ok(fraction) {
                 checks.free_space_final = fraction;
@@ -340,7 +354,7 @@ impl Judge<'_> {
             && dr.to_degrees() <= (normal.max_rotation_deg * frames).min(90.0);
         if check.lost.is_none()
             && plausible
-            && check.conditioning >= RECOVERY_MIN_CONDITIONING
+            && pins_pose(&check)
             && check.world_from_camera.is_finite()
         {
             let fraction = self.free_space(&check.world_from_camera);
@@ -368,7 +382,7 @@ impl Pipeline {
         let map = &self.map;
         let fusion = self.config.fusion;
         // As the prediction's: the warm-up counts fused frames.
-        let fused = self.counts.tracked + self.counts.recovered;
+        let fused = self.counts.fused();
         let found = self.relocaliser.relocalise(
             &self.pyramid,
             Model {

@@ -18,23 +18,29 @@ pub enum Verdict {
     /// or the normal tracker failed on this frame and the wider
     /// re-acquisition search (see [`Pipeline::push_frame`](super::Pipeline::push_frame)) succeeded.
     Recovered,
+    /// Fused, but the geometry left some directions of motion free (a
+    /// flat wall, a wall and the floor; see
+    /// [`free_directions`](crate::track::free_directions)): the pose is
+    /// tracked in the others and held at the motion prior in those.
+    Held,
     /// Not tracked; not fused; the pose is held at the last good one.
     Lost(LostReason),
 }
 
 impl Verdict {
-    /// Short name: `initialised`, `tracked`, `recovered`, `lost`.
+    /// Short name: `initialised`, `tracked`, `recovered`, `held`, `lost`.
     #[must_use]
     pub fn name(&self) -> &'static str {
         match self {
             Verdict::Initialised => "initialised",
             Verdict::Tracked => "tracked",
             Verdict::Recovered => "recovered",
+            Verdict::Held => "held",
             Verdict::Lost(_) => "lost",
         }
     }
 
-    /// True when the frame was fused (initialised, tracked or recovered).
+    /// True when the frame was fused (initialised, tracked, recovered or held).
     #[must_use]
     pub fn is_fused(&self) -> bool {
         !matches!(self, Verdict::Lost(_))
@@ -50,8 +56,18 @@ pub struct VerdictCounts {
     pub lost: u32,
     /// Frames re-acquired after a loss.
     pub recovered: u32,
+    /// Frames fused with some directions held at the motion prior.
+    pub held: u32,
     /// Frames lost in a row up to the last one (0 when tracking).
     pub lost_streak: u32,
+}
+
+impl VerdictCounts {
+    /// Frames fused: tracked (the first included), recovered or held.
+    #[must_use]
+    pub fn fused(&self) -> u32 {
+        self.tracked + self.recovered + self.held
+    }
 }
 
 /// Milliseconds spent in each stage of one frame.

@@ -112,6 +112,8 @@ fn evaluate(
 pub(super) struct Problem<'a> {
     pub(super) pyramid: &'a FramePyramid,
     pub(super) prediction: &'a Prediction,
+    /// Directions the step must not move along.
+    pub(super) free: super::FreeDirections,
     pub(super) workspace: &'a TrackerWorkspace,
     pub(super) config: &'a TrackerConfig,
     /// Levenberg-Marquardt on (rgb and joint modes with `lm_damping`).

@@ -25,8 +25,8 @@ export interface Preset {
 export interface FrameReport {
   index: number;
   timestamp: number;
-  /** 'recovered': re-acquired against the map after a loss (fused). */
-  verdict: 'initialised' | 'tracked' | 'recovered' | 'lost';
+  /** 'recovered': re-acquired against the map after a loss (fused). 'held': fused, but the geometry left some directions of motion free (a flat wall) and the pose was held at the motion prior in those. */
+  verdict: 'initialised' | 'tracked' | 'recovered' | 'held' | 'lost';
   lostReason: null | 'too-few-inliers' | 'high-residual' | 'ill-conditioned' | 'implausible-motion';
   /** world_from_camera, 4x4 column-major, metres. */
   pose: Float64Array;
@@ -46,7 +46,7 @@ export interface FrameReport {
   /** New surfels not added because the map was at maxSurfels. */
   skipped: number;
   /** Verdict counts of the run so far, this frame included; lostStreak: frames lost in a row. */
-  counts: { tracked: number; lost: number; recovered: number; lostStreak: number };
+  counts: { tracked: number; lost: number; recovered: number; held: number; lostStreak: number };
   /** Lost and then placed by relocalisation: the frame index of the keyframe it was placed by; else null. */
   relocalisedFrom: number | null;
   /** Loop closures of the run so far (map and trajectory bent), this frame included. */
@@ -198,6 +198,7 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
                 ("tracked", r.counts.tracked.into()),
                 ("lost", r.counts.lost.into()),
                 ("recovered", r.counts.recovered.into()),
+                ("held", r.counts.held.into()),
                 ("lostStreak", r.counts.lost_streak.into()),
             ])
             .into(),

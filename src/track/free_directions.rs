@@ -1,0 +1,323 @@
+//! Directions of camera motion that the frame's geometry leaves free.
+//!
+//! Point-to-plane ICP constrains a motion only through the surface normals:
+//! a flat wall leaves the motions within it free, a wall meeting a floor the
+//! slide along their join. The information `sum J^T J` with rows
+//! `J = [q x n, n]` (measured point `q` and normal `n`, camera frame, metres)
+//! shows such directions as near-zero eigenvalues, but only with honest
+//! normals. With Kinect-class depth noise the full-resolution normals scatter
+//! by several degrees and fill a free direction with information the data do
+//! not hold: the synthetic room's wall-and-floor view (`examples/noisy_loop.rs`,
+//! frame 62) reads 0.008 per point with noise, as well-constrained views do,
+//! against 0.00004 without. On a coarse grid (at most [`GRID_COLUMNS`]
+//! columns, vertices block-averaged, so normals span a wide baseline of
+//! averaged depth) the same view reads 0.0004-0.0007 with noise, against
+//! 0.003 and more on every frame of TUM fr3/teddy and ICL-NUIM kt0.
+//!
+//! Eigenvalues are per point, with rotations expressed as the displacement
+//! they cause [`ROTATION_ARM_M`] from the camera (twist coordinates
+//! `[w, t]` with `w` in metres at 1 m): an eigenvalue is the mean squared
+//! component of the normals along that motion. A direction below the threshold is *held*: the
+//! tracker's steps get no component along it, so the estimate keeps the
+//! start (the motion prior) there instead of sliding on noise.
+
+use crate::fusion::Prediction;
+use crate::preprocess::{normals_into, PyramidLevel};
+use crate::se3::NormalEquations;
+use glam::Vec3;
+
+/// Columns of the grid the geometry is measured on.
+pub const GRID_COLUMNS: usize = 80;
+
+/// Lever arm that puts rotations in metres: a rotation of `w` radians
+/// counts as a displacement of `w * ROTATION_ARM_M`. With 2 m, the roll
+/// about the optical axis of TUM fr3/teddy's first views (a rounded
+/// object in the middle of the image) read 0.0008-0.001 and was held; with
+/// 1 m its smallest is 0.0028 and ICL-NUIM kt0's 0.0083, while the noisy
+/// synthetic loop's slide (a translation) reads the same.
+pub const ROTATION_ARM_M: f64 = 1.0;
+
+/// How much stiffer than the system's mean diagonal a held direction is made.
+const HOLD_STIFFNESS: f64 = 1e6;
+
+/// The directions held for one frame (as the covectors `u` that a step
+/// `x = [w, t]`, camera-frame twist, must satisfy `u . x = 0` for), and the
+/// geometry's smallest eigenvalue per point.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FreeDirections {
+    directions: [[f64; 6]; 6],
+    count: usize,
+    /// Smallest eigenvalue of the coarse geometry's information per point
+    /// (see the module doc); 0 when the frame has too few points.
+    pub smallest_eigenvalue: f64,
+}
+
+/// Reusable buffers of the coarse grid.
+#[derive(Debug, Clone, Default)]
+pub struct GridWorkspace {
+    vertices: Vec<Vec3>,
+    normals: Vec<Vec3>,
+}
+
+impl FreeDirections {
+    /// The directions whose eigenvalue per point is below `threshold`, for
+    /// the geometry of `level` (the frame's coarsest pyramid level) where
+    /// the `model` prediction also has surfaces: only there can a
+    /// correspondence constrain the motion (a box just entering the view
+    /// is not yet in the model). None when `threshold` is 0 or fewer than
+    /// 6 grid points count.
+    #[must_use]
+    pub fn of_frame(
+        level: &PyramidLevel,
+        model: &Prediction,
+        threshold: f64,
+        grid: &mut GridWorkspace,
+    ) -> Self {
+        let (Some(k), Some(mk)) = (level.intrinsics, model.intrinsics) else {
+            return Self::default();
+        };
+        if threshold <= 0.0 || k.width == 0 || mk.width < k.width {
+            return Self::default();
+        }
+        let (width, factor) = block_average(&level.vertices, k.width, grid);
+        grid.normals.resize(grid.vertices.len(), Vec3::ZERO);
+        normals_into(&grid.vertices, width, &mut grid.normals);
+        let cell = factor * mk.width / k.width;
+        let mut info = nalgebra::Matrix6::<f64>::zeros();
+        let mut points = 0usize;
+        for (i, (q, n)) in grid.vertices.iter().zip(&grid.normals).enumerate() {
+            if *n == Vec3::ZERO || !modelled(model, (i % width, i / width), cell) {
+                continue;
+            }
+            let c = q.as_dvec3().cross(n.as_dvec3()) * ROTATION_ARM_M.recip();
+            let n = n.as_dvec3();
+            let row = nalgebra::Vector6::new(c.x, c.y, c.z, n.x, n.y, n.z);
+            info += row * row.transpose();
+            points += 1;
+        }
+        if points < 6 {
+            return Self::default();
+        }
+        let eigen = nalgebra::SymmetricEigen::new(info / points as f64);
+        let mut free = Self {
+            smallest_eigenvalue: eigen.eigenvalues.min().max(0.0),
+            ..Self::default()
+        };
+        for (i, value) in eigen.eigenvalues.iter().enumerate() {
+            if *value < threshold {
+                let v = eigen.eigenvectors.column(i);
+                // The step `x = [w, t]` is held by `u . x = 0` with
+                // `u = [ARM v_w, v_t]`: no component along `v` in `[ARM w, t]`.
+                let s = ROTATION_ARM_M;
+                free.directions[free.count] = [v[0] * s, v[1] * s, v[2] * s, v[3], v[4], v[5]];
+                free.count += 1;
+            }
+        }
+        free
+    }
+
+    /// Number of held directions (0..=6).
+    #[must_use]
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// `system` made stiff along every held direction, so that its step
+    /// has no component there.
+    #[must_use]
+    pub fn held(&self, system: &NormalEquations) -> NormalEquations {
+        self.pinned(system, HOLD_STIFFNESS)
+    }
+
+    /// `system` with every held direction given `stiffness` times its mean
+    /// diagonal: with 1, a held direction counts as an ordinary one, so the
+    /// conditioning judges only the directions that were solved.
+    #[must_use]
+    pub fn pinned(&self, system: &NormalEquations, stiffness: f64) -> NormalEquations {
+        let mut held = *system;
+        if self.count == 0 {
+            return held;
+        }
+        let mean_diagonal = (0..6).map(|i| system.a[i][i]).sum::<f64>() / 6.0;
+        let stiffness = stiffness * mean_diagonal.max(f64::MIN_POSITIVE);
+        for u in &self.directions[..self.count] {
+            for r in 0..6 {
+                for c in r..6 {
+                    held.a[r][c] += stiffness * u[r] * u[c];
+                }
+            }
+        }
+        held
+    }
+}
+
+/// Whether at least half the `model` pixels of grid cell `(gu, gv)`
+/// (`cell` model pixels square) hold a surfel.
+fn modelled(model: &Prediction, (gu, gv): (usize, usize), cell: usize) -> bool {
+    let Some(mk) = model.intrinsics else {
+        return false;
+    };
+    let mut held = 0;
+    for v in gv * cell..((gv + 1) * cell).min(mk.height) {
+        let row = &model.normals[v * mk.width..(v + 1) * mk.width];
+        for n in &row[(gu * cell).min(mk.width)..((gu + 1) * cell).min(mk.width)] {
+            held += usize::from(*n != Vec3::ZERO);
+        }
+    }
+    2 * held >= cell * cell
+}
+
+/// Averages `vertices` (`width` columns) over square blocks so that at most
+/// [`GRID_COLUMNS`] remain, into `grid.vertices`; returns the grid's width
+/// and the block size.
+/// A block averages the valid vertices within 5 % of its first valid
+/// one's depth (as the pyramid does), so silhouettes are not bridged.
+fn block_average(vertices: &[Vec3], width: usize, grid: &mut GridWorkspace) -> (usize, usize) {
+    let factor = width.div_ceil(GRID_COLUMNS).max(1);
+    let height = vertices.len() / width;
+    let (gw, gh) = (width / factor, height / factor);
+    grid.vertices.clear();
+    grid.vertices.resize(gw * gh, Vec3::ZERO);
+    for gv in 0..gh {
+        for gu in 0..gw {
+            let mut first = 0.0f32;
+            let (mut sum, mut n) = (Vec3::ZERO, 0.0f32);
+            for v in gv * factor..(gv + 1) * factor {
+                for u in gu * factor..(gu + 1) * factor {
+                    let p = vertices[v * width + u];
+                    if p.z <= 0.0 {
+                        continue;
+                    }
+                    if first == 0.0 {
+                        first = p.z;
+                    }
+                    if (p.z - first).abs() <= 0.05 * first {
+                        sum += p;
+                        n += 1.0;
+                    }
+                }
+            }
+            if n > 0.0 {
+                grid.vertices[gv * gw + gu] = sum / n;
+            }
+        }
+    }
+    (gw, factor)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Intrinsics;
+    use crate::preprocess::back_project_into;
+
+    /// A 160x120 view (the grid averages it 2x2 down to 80x60) of the
+    /// planes `(n, d)` (points with `n . p = d`, camera frame), each ray
+    /// hitting the nearest; and a model prediction holding every pixel
+    /// where `modelled(u, v)`.
+    fn view(
+        planes: &[(Vec3, f32)],
+        modelled: impl Fn(usize, usize) -> bool,
+    ) -> (PyramidLevel, Prediction) {
+        let k = Intrinsics::new(150.0, 150.0, 79.5, 59.5, 160, 120);
+        let mut depth = vec![0.0; k.pixel_count()];
+        for v in 0..k.height {
+            for u in 0..k.width {
+                let ray = k.back_project(u as f32, v as f32, 1.0);
+                depth[v * k.width + u] = planes
+                    .iter()
+                    .filter_map(|(n, d)| {
+                        let t = d / n.dot(ray);
+                        (t > 0.0).then_some(t)
+                    })
+                    .fold(f32::INFINITY, f32::min);
+            }
+        }
+        let mut vertices = vec![Vec3::ZERO; k.pixel_count()];
+        back_project_into(&k, &depth, &mut vertices);
+        let level = PyramidLevel {
+            intrinsics: Some(k),
+            vertices,
+            ..PyramidLevel::default()
+        };
+        let mut model = Prediction::new(false);
+        model.intrinsics = Some(k);
+        model.normals = (0..k.pixel_count())
+            .map(|i| {
+                if modelled(i % k.width, i / k.width) {
+                    Vec3::Z
+                } else {
+                    Vec3::ZERO
+                }
+            })
+            .collect();
+        (level, model)
+    }
+
+    fn free(planes: &[(Vec3, f32)], modelled: impl Fn(usize, usize) -> bool) -> FreeDirections {
+        let (level, model) = view(planes, modelled);
+        FreeDirections::of_frame(&level, &model, 1e-3, &mut GridWorkspace::default())
+    }
+
+    const WALL: (Vec3, f32) = (Vec3::Z, 2.0);
+    const FLOOR: (Vec3, f32) = (Vec3::Y, 0.5);
+    const SIDE_WALL: (Vec3, f32) = (Vec3::X, 0.6);
+
+    #[test]
+    fn a_wall_leaves_three_directions_free() {
+        let f = free(&[WALL], |_, _| true);
+        assert_eq!(f.count(), 3, "{f:?}");
+        assert!(f.smallest_eigenvalue < 1e-9);
+    }
+
+    #[test]
+    fn a_wall_and_the_floor_leave_the_slide_along_their_join() {
+        let f = free(&[WALL, FLOOR], |_, _| true);
+        assert_eq!(f.count(), 1, "{f:?}");
+        let u = f.directions[0];
+        assert!(u[3].abs() > 0.99, "held along x (the join): {u:?}");
+        // Held: a step along the join costs a million times more than before.
+        let mut system = NormalEquations::default();
+        for j in [
+            [0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+            [0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+            [1.0; 6],
+        ] {
+            system.add(&j, 0.1, 1.0);
+        }
+        let held = f.held(&system);
+        assert!(held.a[3][3] > 1e5 * system.a[3][3]);
+    }
+
+    #[test]
+    fn three_walls_pin_every_direction() {
+        let f = free(&[WALL, FLOOR, SIDE_WALL], |_, _| true);
+        assert_eq!(f.count(), 0, "{f:?}");
+        assert!(f.smallest_eigenvalue > 1e-3);
+    }
+
+    #[test]
+    fn structure_the_model_does_not_hold_yet_does_not_count() {
+        // The floor is in view but not yet in the model: the wall alone.
+        let f = free(&[WALL, FLOOR], |_, v| v < 50);
+        assert_eq!(f.count(), 3, "{f:?}");
+    }
+
+    #[test]
+    fn threshold_zero_or_an_empty_view_holds_nothing() {
+        let (level, model) = view(&[WALL], |_, _| true);
+        let mut grid = GridWorkspace::default();
+        assert_eq!(
+            FreeDirections::of_frame(&level, &model, 0.0, &mut grid).count(),
+            0
+        );
+        let empty = PyramidLevel::default();
+        assert_eq!(
+            FreeDirections::of_frame(&empty, &model, 1e-3, &mut grid).count(),
+            0
+        );
+        let none = FreeDirections::default();
+        let system = NormalEquations::default();
+        assert_eq!(none.held(&system).a, system.a);
+    }
+}
