@@ -102,9 +102,6 @@ pub struct LoopCloser {
     closures: u32,
     /// Frame of the last global closure.
     last_global: Option<u32>,
-    /// A global match awaiting the next frame's confirmation: its frame
-    /// and correction.
-    unconfirmed: Option<(u32, DAffine3)>,
 }
 
 impl LoopCloser {
@@ -122,7 +119,6 @@ impl LoopCloser {
             graph: None,
             closures: 0,
             last_global: None,
-            unconfirmed: None,
         }
     }
 
@@ -147,7 +143,6 @@ impl LoopCloser {
         self.graph = None;
         self.closures = 0;
         self.last_global = None;
-        self.unconfirmed = None;
     }
 
     /// A `world_from_camera` pose of frame `time` moved by the last closure
@@ -270,10 +265,6 @@ impl LoopCloser {
         if !config.looks_at(now) || resting {
             return;
         }
-        let pending = self
-            .unconfirmed
-            .take()
-            .filter(|(t, _)| now.saturating_sub(*t) <= config.every_frames.max(1));
         outcome.global_looked = true;
         let found = {
             let map_ref = &*map;
@@ -310,11 +301,6 @@ impl LoopCloser {
         let Some(found) = found else {
             return;
         };
-        if !pending.is_some_and(|(_, c)| config.confirms(&c, &found.correction)) {
-            self.unconfirmed = Some((now, found.correction));
-            outcome.global = Some(GlobalClosure::of(&found, false));
-            return;
-        }
         let view = look.relocaliser.keyframe_view();
         let inactive_before = frame.fusion.active_at(now).start;
         self.collect_global(map, &found, view, look.pyramid, (now, inactive_before));

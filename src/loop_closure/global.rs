@@ -46,21 +46,6 @@ pub struct GlobalConfig {
     /// now a blend of the two copies, would only give small corrections
     /// of its own blending.
     pub cooldown_frames: u32,
-    /// A match bends the map only when the next look (at most
-    /// `every_frames` later) matches too, with a correction that differs
-    /// from the first by at most this translation (metres) plus
-    /// `confirm_fraction` of it: a drifted map needs about the same
-    /// correction look after look, a frame the tracker got wrong for a
-    /// moment (a slide in a weak view) one that is gone by the next look,
-    /// and bending the map for it spreads that one frame's error over the
-    /// map (the noisy synthetic loop: ATE 0.71 -> 1.14 cm).
-    pub confirm_within_m: f64,
-    /// ... the same for rotation, degrees ...
-    pub confirm_within_deg: f64,
-    /// ... and the share of the first correction allowed on top (the
-    /// correction shrinks while the tracker, against the reactivated old
-    /// model, pulls the pose back: 16.2 then 13.6 cm on the fx +3 % loop).
-    pub confirm_fraction: f64,
     /// The normal tracker's final system against the old model must be at
     /// least this well conditioned (the pipeline's re-acquisition bound:
     /// without a prior pose, ICP on one or two planes slides).
@@ -80,9 +65,6 @@ impl Default for GlobalConfig {
             min_correction_m: 0.03,
             min_correction_deg: 2.0,
             cooldown_frames: 200,
-            confirm_within_m: 0.01,
-            confirm_within_deg: 1.0,
-            confirm_fraction: 0.25,
             max_correction_m: 1.0,
             max_correction_deg: 30.0,
             min_conditioning: 2e-3,
@@ -144,16 +126,6 @@ pub fn find_global_match<F: Fn(usize) -> bool + Sync>(
 }
 
 impl GlobalConfig {
-    /// Whether the correction `second` (`registered = correction *
-    /// tracked`, world frame) of a later look confirms `first`.
-    #[must_use]
-    pub fn confirms(&self, first: &DAffine3, second: &DAffine3) -> bool {
-        let (t1, r1) = se3::motion_magnitude(first);
-        let (dt, dr) = se3::motion_magnitude(&(first.inverse() * *second));
-        dt <= self.confirm_within_m + self.confirm_fraction * t1
-            && dr.to_degrees() <= self.confirm_within_deg + self.confirm_fraction * r1.to_degrees()
-    }
-
     /// Whether frame `now` is looked up: the check is on, it is one of
     /// every `every_frames`, and keyframes old enough can exist.
     #[must_use]
