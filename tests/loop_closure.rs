@@ -202,6 +202,11 @@ fn drifting_loop(window: u32, closure: bool, frames: usize) -> (LoopRun, f64) {
     config.intrinsics.fy *= 1.005;
     config.fusion.active_window_frames = window;
     config.loop_closure.enabled = closure;
+    // The drift comes from the calibration error sliding the tracker along
+    // the weak views' free directions; holding them takes most of it away
+    // (ATE 1.36 -> 0.48 cm open, 3.9 -> 1.6 cm at frame 240), leaving
+    // too little to close. This test is about closing a drift: nothing held.
+    config.tracker.hold_below_eigenvalue = 0.0;
     let run = run_loop(&config, k, 240, frames, NoiseModel::none());
     let a = ate(run.slam.trajectory(), &run.truth, 0.01).expect("ate");
     (run, a.rmse_m)

@@ -11,19 +11,28 @@
 //! frame 62) reads 0.008 per point with noise, as well-constrained views do,
 //! against 0.00004 without. On a coarse grid (at most [`GRID_COLUMNS`]
 //! columns, vertices block-averaged, so normals span a wide baseline of
-//! averaged depth) the same view reads 0.0004-0.0007 with noise, against
-//! 0.003 and more on every frame of TUM fr3/teddy and ICL-NUIM kt0.
+//! averaged depth) the same view reads 0.0004-0.0007 with noise.
 //!
-//! Eigenvalues are per point, with rotations expressed as the displacement
-//! they cause [`ROTATION_ARM_M`] from the camera (twist coordinates
-//! `[w, t]` with `w` in metres at 1 m): an eigenvalue is the mean squared
-//! component of the normals along that motion. A direction below the threshold is *held*: the
-//! tracker's steps get no component along it, so the estimate keeps the
-//! start (the motion prior) there instead of sliding on noise.
+//! Only geometry ICP can use counts: each grid cell is weighted by the
+//! correspondences it gets at the start pose (the box that pins the slide
+//! is in the frame but not yet stable in the model; right after the
+//! warm-up a noisy model is sparse, and a cell half covered still
+//! constrains as much as its correspondences).
+//!
+//! Eigenvalues are per correspondence, with rotations expressed as the
+//! displacement they cause [`ROTATION_ARM_M`] from the camera (twist
+//! coordinates `[w, t]` with `w` in metres at 1 m): an eigenvalue is the
+//! mean squared component of the normals along that motion. A direction
+//! below the threshold is *held*: the tracker's steps get no component
+//! along it, so the estimate keeps the start (the motion prior) there
+//! instead of sliding on noise.
 
+use super::icp::IcpGates;
+use crate::camera::Intrinsics;
 use crate::fusion::Prediction;
 use crate::preprocess::{normals_into, PyramidLevel};
 use crate::se3::NormalEquations;
+use crate::se3::RigidF32;
 use glam::Vec3;
 
 /// Columns of the grid the geometry is measured on.
@@ -57,48 +66,61 @@ pub struct FreeDirections {
 pub struct GridWorkspace {
     vertices: Vec<Vec3>,
     normals: Vec<Vec3>,
+    /// Correspondences per grid cell.
+    counts: Vec<u32>,
 }
 
 impl FreeDirections {
     /// The directions whose eigenvalue per point is below `threshold`, for
     /// the geometry of `level` (the frame's coarsest pyramid level) where
-    /// the `model` prediction also has surfaces: only there can a
-    /// correspondence constrain the motion (a box just entering the view
-    /// is not yet in the model). None when `threshold` is 0 or fewer than
-    /// 6 grid points count.
+    /// ICP can find correspondences: each grid cell counts as many times as
+    /// model pixels (every second one each way) land in it at the start
+    /// pose `camera_from_world` within `gates`' distance and normal gates
+    /// of its averaged point and normal. A box just entering the view is
+    /// not yet in the model and counts nothing; a sparsely modelled wall
+    /// counts as much as its correspondences. None when `threshold` is 0
+    /// or fewer than 6 correspondences count.
     #[must_use]
     pub fn of_frame(
         level: &PyramidLevel,
         model: &Prediction,
+        (camera_from_world, gates): (&RigidF32, &IcpGates),
         threshold: f64,
         grid: &mut GridWorkspace,
     ) -> Self {
         let (Some(k), Some(mk)) = (level.intrinsics, model.intrinsics) else {
             return Self::default();
         };
-        if threshold <= 0.0 || k.width == 0 || mk.width < k.width {
+        if threshold <= 0.0 || k.width == 0 {
             return Self::default();
         }
         let (width, factor) = block_average(&level.vertices, k.width, grid);
         grid.normals.resize(grid.vertices.len(), Vec3::ZERO);
         normals_into(&grid.vertices, width, &mut grid.normals);
-        let cell = factor * mk.width / k.width;
+        count_correspondences(
+            model,
+            &mk,
+            (&k, width, factor),
+            camera_from_world,
+            gates,
+            grid,
+        );
         let mut info = nalgebra::Matrix6::<f64>::zeros();
-        let mut points = 0usize;
-        for (i, (q, n)) in grid.vertices.iter().zip(&grid.normals).enumerate() {
-            if *n == Vec3::ZERO || !modelled(model, (i % width, i / width), cell) {
+        let mut points = 0.0f64;
+        for ((q, n), &count) in grid.vertices.iter().zip(&grid.normals).zip(&grid.counts) {
+            if *n == Vec3::ZERO || count == 0 {
                 continue;
             }
             let c = q.as_dvec3().cross(n.as_dvec3()) * ROTATION_ARM_M.recip();
             let n = n.as_dvec3();
             let row = nalgebra::Vector6::new(c.x, c.y, c.z, n.x, n.y, n.z);
-            info += row * row.transpose();
-            points += 1;
+            info += row * row.transpose() * f64::from(count);
+            points += f64::from(count);
         }
-        if points < 6 {
+        if points < 6.0 {
             return Self::default();
         }
-        let eigen = nalgebra::SymmetricEigen::new(info / points as f64);
+        let eigen = nalgebra::SymmetricEigen::new(info / points);
         let mut free = Self {
             smallest_eigenvalue: eigen.eigenvalues.min().max(0.0),
             ..Self::default()
@@ -151,20 +173,53 @@ impl FreeDirections {
     }
 }
 
-/// Whether at least half the `model` pixels of grid cell `(gu, gv)`
-/// (`cell` model pixels square) hold a surfel.
-fn modelled(model: &Prediction, (gu, gv): (usize, usize), cell: usize) -> bool {
-    let Some(mk) = model.intrinsics else {
-        return false;
-    };
-    let mut held = 0;
-    for v in gv * cell..((gv + 1) * cell).min(mk.height) {
-        let row = &model.normals[v * mk.width..(v + 1) * mk.width];
-        for n in &row[(gu * cell).min(mk.width)..((gu + 1) * cell).min(mk.width)] {
-            held += usize::from(*n != Vec3::ZERO);
+/// Counts into `grid.counts`, per grid cell (`width` columns, `factor`
+/// pixels of level `k` square), the model pixels (every second one each
+/// way) that `camera_from_world` puts in it within `gates` of the cell's
+/// averaged point and normal.
+fn count_correspondences(
+    model: &Prediction,
+    mk: &Intrinsics,
+    (k, width, factor): (&Intrinsics, usize, usize),
+    camera_from_world: &RigidF32,
+    gates: &IcpGates,
+    grid: &mut GridWorkspace,
+) {
+    grid.counts.clear();
+    grid.counts.resize(grid.vertices.len(), 0);
+    let height = grid.vertices.len() / width.max(1);
+    let cos_gate = gates.normal_gate_deg.to_radians().cos();
+    for v in (0..mk.height).step_by(2) {
+        for u in (0..mk.width).step_by(2) {
+            let i = v * mk.width + u;
+            let (Some(&normal), Some(&vertex)) = (model.normals.get(i), model.vertices.get(i))
+            else {
+                continue;
+            };
+            if normal == Vec3::ZERO {
+                continue;
+            }
+            let p = camera_from_world.point(vertex);
+            if p.z <= 0.0 {
+                continue;
+            }
+            let Some(j) = k.pixel_index(k.project(p)) else {
+                continue;
+            };
+            let (gu, gv) = (j % k.width / factor, j / k.width / factor);
+            if gu >= width || gv >= height {
+                continue;
+            }
+            let g = gv * width + gu;
+            let (q, n) = (grid.vertices[g], grid.normals[g]);
+            if n != Vec3::ZERO
+                && (p - q).length() <= gates.distance_gate_m
+                && camera_from_world.vector(normal).dot(n) >= cos_gate
+            {
+                grid.counts[g] += 1;
+            }
         }
     }
-    2 * held >= cell * cell
 }
 
 /// Averages `vertices` (`width` columns) over square blocks so that at most
@@ -208,7 +263,6 @@ fn block_average(vertices: &[Vec3], width: usize, grid: &mut GridWorkspace) -> (
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::Intrinsics;
     use crate::preprocess::back_project_into;
 
     /// A 160x120 view (the grid averages it 2x2 down to 80x60) of the
@@ -240,12 +294,16 @@ mod tests {
             vertices,
             ..PyramidLevel::default()
         };
+        // The model: the same surfaces, seen from the same (identity) pose.
+        let mut normals = vec![Vec3::ZERO; k.pixel_count()];
+        normals_into(&level.vertices, k.width, &mut normals);
         let mut model = Prediction::new(false);
         model.intrinsics = Some(k);
+        model.vertices = level.vertices.clone();
         model.normals = (0..k.pixel_count())
             .map(|i| {
                 if modelled(i % k.width, i / k.width) {
-                    Vec3::Z
+                    normals[i]
                 } else {
                     Vec3::ZERO
                 }
@@ -254,9 +312,25 @@ mod tests {
         (level, model)
     }
 
+    fn identity() -> RigidF32 {
+        RigidF32::from_affine(&glam::DAffine3::IDENTITY)
+    }
+
+    const GATES: IcpGates = IcpGates {
+        distance_gate_m: 0.1,
+        normal_gate_deg: 20.0,
+        huber_m: 0.02,
+    };
+
     fn free(planes: &[(Vec3, f32)], modelled: impl Fn(usize, usize) -> bool) -> FreeDirections {
         let (level, model) = view(planes, modelled);
-        FreeDirections::of_frame(&level, &model, 1e-3, &mut GridWorkspace::default())
+        FreeDirections::of_frame(
+            &level,
+            &model,
+            (&identity(), &GATES),
+            1e-3,
+            &mut GridWorkspace::default(),
+        )
     }
 
     const WALL: (Vec3, f32) = (Vec3::Z, 2.0);
@@ -307,13 +381,15 @@ mod tests {
     fn threshold_zero_or_an_empty_view_holds_nothing() {
         let (level, model) = view(&[WALL], |_, _| true);
         let mut grid = GridWorkspace::default();
+        let t = identity();
+        let start = (&t, &GATES);
         assert_eq!(
-            FreeDirections::of_frame(&level, &model, 0.0, &mut grid).count(),
+            FreeDirections::of_frame(&level, &model, start, 0.0, &mut grid).count(),
             0
         );
         let empty = PyramidLevel::default();
         assert_eq!(
-            FreeDirections::of_frame(&empty, &model, 1e-3, &mut grid).count(),
+            FreeDirections::of_frame(&empty, &model, start, 1e-3, &mut grid).count(),
             0
         );
         let none = FreeDirections::default();

@@ -145,12 +145,12 @@ pub struct TrackerConfig {
     /// information per point than this (see [`free_directions`]) are held
     /// at the start (the motion prior) instead of solved; 0 = never.
     ///
-    /// Off by default: 1e-3 takes the noisy synthetic loop from 15.7 to
-    /// 0.8 cm ATE (`examples/noisy_loop.rs`, `tests/degenerate_views.rs`),
-    /// but on ICL-NUIM kt0 with Kinect noise (`tests/sensor_noise.rs`) the
-    /// model is sparse for ~50 frames after the warm-up (only stable
-    /// surfels are predicted), frames 10-62 read as degenerate, and
-    /// holding them costs 0.35 -> 1.94 cm.
+    /// Off by default. 1e-3 takes the noisy synthetic loop from 15.7 to
+    /// 0.2 cm ATE (`examples/noisy_loop.rs`, `tests/degenerate_views.rs`)
+    /// and holds no frame of TUM fr3/teddy, ICL-NUIM kt0, or kt0 with
+    /// Kinect noise, but the synthetic room's default path with half that
+    /// noise (`tests/mesh_accuracy.rs`, 100 frames) drifts to 14.4 cm ATE
+    /// with it: the motion prior held in a free direction can be wrong.
     pub hold_below_eigenvalue: f64,
     /// Lost when the frame-to-frame motion exceeds this translation, metres.
     pub max_translation_m: f64,
@@ -307,6 +307,10 @@ pub fn track(
         (TrackerMode::Icp, Some(coarsest)) => FreeDirections::of_frame(
             coarsest,
             prediction,
+            (
+                &RigidF32::from_affine(&initial_world_from_camera.inverse()),
+                &config.gates,
+            ),
             config.hold_below_eigenvalue,
             &mut workspace.grid,
         ),
