@@ -117,7 +117,8 @@ impl FreeDirections {
             info += row * row.transpose() * f64::from(count);
             points += f64::from(count);
         }
-        if points < 6.0 {
+        // A non-finite sum would keep the eigen solver iterating forever.
+        if points < 6.0 || !info.iter().all(|v| v.is_finite()) {
             return Self::default();
         }
         let eigen = nalgebra::SymmetricEigen::new(info / points);
