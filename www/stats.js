@@ -1,4 +1,4 @@
-// Live statistics: frames, tracked / lost, relocalised frames and loop
+// Live statistics: frames, tracked / held / lost, relocalised frames and loop
 // closures, surfels, frames per second, ms per pipeline stage (moving
 // average), ATE so far (computed in the worker with the wasm module's ateTum
 // when the sequence has ground truth).

@@ -108,7 +108,7 @@ test('every bad input gets a message naming the file or setting; the page surviv
     status = await waitForStatus(page, (s) => s.sequence === 'tum_fr3_teddy_clip' && s.framesProcessed >= 2, { timeoutMs: 120_000 });
     assert.ok(status.framesProcessed >= 2, 'a new sequence runs after the errors');
     assert.equal(typeof status.framesRecovered, 'number');
-    assert.match(await page.locator('#stats').textContent(), /tracked \/ lost \/ recovered/);
+    assert.match(await page.locator('#stats').textContent(), /tracked \/ held \/ lost \/ recovered/);
   } finally {
     await env.close();
     for (const d of [clip.parent, missing.parent, badGt.parent, empty]) fs.rmSync(d, { recursive: true, force: true });
