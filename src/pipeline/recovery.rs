@@ -8,7 +8,9 @@ use crate::loop_closure::relocalise::{Model, Trackers};
 use crate::preprocess::FramePyramid;
 use crate::se3;
 use crate::track::verify::{free_space_violation, TrackingChecks, VerifyConfig};
-use crate::track::{track, LostReason, TrackResult, TrackerConfig, TrackerWorkspace};
+use crate::track::{
+    track, track_holding, LostReason, TrackResult, TrackerConfig, TrackerWorkspace,
+};
 use glam::DAffine3;
 
 /// The `track` stage's answer for one frame.
@@ -127,7 +129,12 @@ impl Pipeline {
         let workspace = &mut self.tracker;
         let mut checks = TrackingChecks::default();
         let first = judge.first_attempt(workspace, &mut checks);
-        if first.clean && !judge.moved(&first.result.world_from_camera) && !verify.sparse_always {
+        let held = first.result.held_directions > 0;
+        if first.clean
+            && !held
+            && !judge.moved(&first.result.world_from_camera)
+            && !verify.sparse_always
+        {
             checks.free_space_final = checks.free_space_first;
             return first.accept(&judge, checks);
         }
@@ -273,11 +280,20 @@ impl Judge<'_> {
         let sparse_pose = self.previous * estimate.reference_from_current;
         checks.sparse = Some((sparse_pose, estimate.inliers));
         checks.sparse_rms_m = estimate.rms_m;
-        if first.clean && verify.agree(&first.result.world_from_camera, &sparse_pose) {
+        let held = first.result.held_directions > 0;
+        if first.clean && !held && verify.agree(&first.result.world_from_camera, &sparse_pose) {
             checks.free_space_final = checks.free_space_first;
             return first.accept(self, checks);
         }
-        let second = self.track(&sparse_pose, self.normal, workspace);
+        // The frame's free directions stay held at the estimate.
+        let held = (first.result.held_directions > 0).then_some(&first.result.free);
+        let second = track_holding(
+            self.pyramid,
+            self.prediction,
+            (&sparse_pose, held),
+            self.normal,
+            workspace,
+        );
         // Started at the sparse estimate, the dense tracker must land
         // near it, or back on its first result (the sparse estimate is
         // the less accurate of the two: on TUM fr3/teddy at strides 3-8

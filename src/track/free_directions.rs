@@ -24,8 +24,10 @@
 //! coordinates `[w, t]` with `w` in metres at 1 m): an eigenvalue is the
 //! mean squared component of the normals along that motion. A direction
 //! below the threshold is *held*: the tracker's steps get no component
-//! along it, so the estimate keeps the start (the motion prior) there
-//! instead of sliding on noise.
+//! along it, so the estimate keeps its start there instead of sliding on
+//! noise. The pipeline starts at the motion prior and, for a frame that
+//! held a direction, again at the sparse feature estimate with the same
+//! directions held ([`super::track_holding`]).
 
 use super::icp::IcpGates;
 use crate::camera::Intrinsics;

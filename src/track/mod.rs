@@ -25,7 +25,8 @@ use crate::preprocess::FramePyramid;
 use crate::se3;
 use crate::se3::RigidF32;
 use evaluate::{noise_weights, Evaluation, Problem};
-use free_directions::{FreeDirections, GridWorkspace};
+pub use free_directions::FreeDirections;
+use free_directions::GridWorkspace;
 use glam::DAffine3;
 use icp::{icp_step, IcpGates};
 use rgb::{PhotometricConfig, RgbWorkspace};
@@ -143,14 +144,16 @@ pub struct TrackerConfig {
     pub min_conditioning: f64,
     /// ICP mode: motions along which the frame's coarse geometry has less
     /// information per point than this (see [`free_directions`]) are held
-    /// at the start (the motion prior) instead of solved; 0 = never.
+    /// at the start instead of solved; 0 = never. The pipeline starts the
+    /// frame at the constant-velocity prior, and a frame that held a
+    /// direction is tracked again from the sparse feature estimate when
+    /// there is one, with the same directions held: the colour image then
+    /// decides what the geometry cannot (a velocity kept along a free
+    /// direction for 40 frames integrates one bad step into 75 cm).
     ///
-    /// Off by default. 1e-3 takes the noisy synthetic loop from 15.7 to
-    /// 0.2 cm ATE (`examples/noisy_loop.rs`, `tests/degenerate_views.rs`)
-    /// and holds no frame of TUM fr3/teddy, ICL-NUIM kt0, or kt0 with
-    /// Kinect noise, but the synthetic room's default path with half that
-    /// noise (`tests/mesh_accuracy.rs`, 100 frames) drifts to 14.4 cm ATE
-    /// with it: the motion prior held in a free direction can be wrong.
+    /// 1e-3 takes the noisy synthetic loop from 15.7 to 0.3 cm ATE
+    /// (`examples/noisy_loop.rs`, `tests/degenerate_views.rs`), holds no
+    /// frame of TUM fr3/teddy, ICL-NUIM kt0 or kt0 with Kinect noise.
     pub hold_below_eigenvalue: f64,
     /// Lost when the frame-to-frame motion exceeds this translation, metres.
     pub max_translation_m: f64,
@@ -181,7 +184,7 @@ impl Default for TrackerConfig {
             min_inliers: 1000,
             max_residual_m: 0.03,
             min_conditioning: 1e-5,
-            hold_below_eigenvalue: 0.0,
+            hold_below_eigenvalue: 1e-3,
             max_translation_m: 0.30,
             max_rotation_deg: 30.0,
             verify: VerifyConfig::default(),
@@ -241,6 +244,9 @@ pub struct TrackResult {
     /// Directions of motion the geometry left free and the tracker held
     /// at its start (see [`free_directions`]); 0 when all six were solved.
     pub held_directions: usize,
+    /// The directions held (camera-frame twist covectors), for another
+    /// attempt on the same frame ([`track_holding`]).
+    pub free: FreeDirections,
     /// `None` when tracked, otherwise why it was lost.
     pub lost: Option<LostReason>,
 }
@@ -298,13 +304,35 @@ pub fn track(
     config: &TrackerConfig,
     workspace: &mut TrackerWorkspace,
 ) -> TrackResult {
+    track_holding(
+        pyramid,
+        prediction,
+        (initial_world_from_camera, None),
+        config,
+        workspace,
+    )
+}
+
+/// [`track`], holding `held` (the directions an earlier attempt on the same
+/// frame found free, [`TrackResult::free`]) instead of measuring them again
+/// at this start: a start a little elsewhere can read a free direction just
+/// above the threshold and slide along it.
+#[must_use]
+pub fn track_holding(
+    pyramid: &FramePyramid,
+    prediction: &Prediction,
+    (initial_world_from_camera, held): (&DAffine3, Option<&FreeDirections>),
+    config: &TrackerConfig,
+    workspace: &mut TrackerWorkspace,
+) -> TrackResult {
     if config.mode != TrackerMode::Icp {
         workspace
             .rgb
             .prepare(pyramid, prediction, &config.photometric);
     }
-    let free = match (config.mode, pyramid.levels.last()) {
-        (TrackerMode::Icp, Some(coarsest)) => FreeDirections::of_frame(
+    let free = match (config.mode, pyramid.levels.last(), held) {
+        (TrackerMode::Icp, _, Some(held)) => *held,
+        (TrackerMode::Icp, Some(coarsest), None) => FreeDirections::of_frame(
             coarsest,
             prediction,
             (
@@ -488,6 +516,7 @@ fn track_result(
         photometric_residuals: photometric.count,
         conditioning,
         held_directions: problem.free.count(),
+        free: problem.free,
         lost: None,
     };
     result.lost = verdict(&result, initial_world_from_camera, config);
