@@ -59,6 +59,9 @@ fn config(window: u32, loop_closure: bool) -> SlamConfig {
     // difference (one bend). These tests are about what the window does to
     // the map, on exact tracking: nothing held.
     config.tracker.hold_below_eigenvalue = 0.0;
+    // What the window alone does: copies are not merged (see
+    // `the_copy_laid_on_the_return_is_merged_into_the_first_one`).
+    config.fusion.merge_copies_after_frames = 0;
     config
 }
 
@@ -66,7 +69,12 @@ fn config(window: u32, loop_closure: bool) -> SlamConfig {
 /// trajectory against the truth, so that what the map shows is fusion's
 /// doing, not a tracking failure.
 fn run_turn(window: u32, loop_closure: bool, frames: usize) -> Pipeline {
-    let config = config(window, loop_closure);
+    run_turn_with(&config(window, loop_closure), frames)
+}
+
+/// [`run_turn`] with `config`.
+fn run_turn_with(config: &SlamConfig, frames: usize) -> Pipeline {
+    let window = config.fusion.active_window_frames;
     let scene = Scene::room();
     let mut slam = Pipeline::new(config.clone()).expect("config");
     let origin = turn_pose(0).inverse();
@@ -375,4 +383,49 @@ fn reset_forgets_the_times() {
     assert!(map.last_seen().iter().all(|&f| f == 0));
     assert!(map.first_seen().iter().all(|&f| f == 0));
     assert_eq!(map.last_seen().len(), map.len());
+}
+
+/// With copies merged (the default, `FusionConfig::merge_copies_after_frames`)
+/// and loop closure off, the copy the return lays over the inactive first
+/// one is merged into it once it is old enough: the first copy is active
+/// again and the map holds one copy of the first view, not two.
+#[test]
+fn the_copy_laid_on_the_return_is_merged_into_the_first_one() {
+    // The turn, then the camera rests at the start for longer than the delay.
+    let delay = FusionConfig::default().merge_copies_after_frames as usize;
+    assert!(delay > 0);
+    let frames = turn_frames() + delay + 20;
+    let back = (HOLD + 2 * HALF_TURN) as u32;
+    let mut merging = config(20, false);
+    merging.fusion.merge_copies_after_frames = delay as u32;
+    let merged = run_turn_with(&merging, frames);
+    let plain = run_turn(20, false, frames);
+    let (m, p) = (merged.map(), plain.map());
+    let early = |map: &SurfelMap, i: usize| {
+        map.first_seen()[i] < HOLD as u32 && in_first_view(map.positions()[i])
+    };
+    let late_copy = |map: &SurfelMap, i: usize| {
+        map.first_seen()[i] >= HALF_TURN as u32 && in_first_view(map.positions()[i])
+    };
+    let early_merged = count(m, |i| early(m, i));
+    let updated = count(m, |i| early(m, i) && m.last_seen()[i] >= back);
+    let (copies_merged, copies_plain) =
+        (count(m, |i| late_copy(m, i)), count(p, |i| late_copy(p, i)));
+    eprintln!(
+        "early surfels {early_merged}, active again {updated}; copies of the first view {copies_merged} \
+         (not merged {copies_plain}); map {} (not merged {})",
+        m.live_len(),
+        p.live_len()
+    );
+    assert!(early_merged > 5000, "{early_merged} early surfels");
+    assert!(
+        updated * 2 > early_merged,
+        "{updated} of {early_merged} merged into"
+    );
+    assert!(
+        copies_merged * 3 < copies_plain,
+        "{copies_merged} copies left, {copies_plain} without merging"
+    );
+    assert!(m.live_len() < p.live_len());
+    assert!(m.all_finite());
 }

@@ -57,6 +57,16 @@ pub struct FusionConfig {
     /// ElasticFusion (Whelan et al. 2015). Counted in pushed frames, lost
     /// ones included; 0 counts as 1.
     pub active_window_frames: u32,
+    /// A stable surfel that has lain this many frames on an older stable
+    /// surfel that was inactive (within 1 cm, normals within
+    /// `normal_gate_deg`) is merged into it, which becomes active again:
+    /// a return to a place whose surfels went inactive, or whose centres
+    /// fall between the pixels, lays a second copy beside the first and the
+    /// map grows on every revisit. The delay leaves loop closure the time
+    /// to register the two copies first (merged at once, the copies a
+    /// closure would have aligned are gone). 0 = never merged. See
+    /// `docs/performance.md#revisit-growth`.
+    pub merge_copies_after_frames: u32,
 }
 
 impl Default for FusionConfig {
@@ -75,6 +85,7 @@ impl Default for FusionConfig {
             min_noise_weight: 0.2,
             max_surfels: 4_000_000,
             active_window_frames: 200,
+            merge_copies_after_frames: 30,
         }
     }
 }

@@ -18,6 +18,7 @@
 
 pub mod chunk_bounds;
 mod cleanup;
+mod coincide;
 mod config;
 mod depth_tiles;
 pub mod frustum;
@@ -29,6 +30,7 @@ mod spatial_order;
 mod surfel_map;
 
 pub use cleanup::remove_unstable;
+pub use coincide::merge_copies;
 pub use config::FusionConfig;
 pub use depth_tiles::DepthTiles;
 pub use integrate::{FusionStats, Integrator, ABSORBED};

@@ -22,7 +22,8 @@ use crate::clock::now_ms;
 use crate::features::SparseEstimator;
 use crate::frame::{DecodeScratch, RgbdFrame};
 use crate::fusion::{
-    remove_unstable, FusionStats, Integrator, Measured, Prediction, SpatialOrder, SurfelMap,
+    merge_copies, remove_unstable, FusionStats, Integrator, Measured, Prediction, SpatialOrder,
+    SurfelMap,
 };
 use crate::loop_closure::relocalise::Relocaliser;
 use crate::loop_closure::{GlobalLook, LoopCloser, LoopFrame, LoopOutcome};
@@ -311,6 +312,7 @@ impl Pipeline {
         fusion.removed = removed;
         self.order.reserve_for(&self.map);
         if index % self.config.fusion.cleanup_interval_frames.max(1) == 0 {
+            fusion.absorbed += merge_copies(&mut self.map, &self.config.fusion, index);
             fusion.removed +=
                 remove_unstable(&mut self.map, &self.config.fusion, index, &mut self.order);
         }

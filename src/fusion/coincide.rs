@@ -1,0 +1,111 @@
+//! Surfaces mapped twice: a surfel that became stable recently and lies on
+//! an older stable surfel (within [`COINCIDE_M`], normals within the
+//! fusion's normal gate) is merged into the older one, which takes the
+//! later `last_seen`. Fusion associates a measurement only with the active
+//! surfels whose centre lands on its pixel, so a return to a place whose
+//! surfels went inactive (or whose centres now fall between pixels) lays a
+//! second copy beside the first (`docs/performance.md#revisit-growth`).
+
+use super::{FusionConfig, SurfelMap};
+use glam::{IVec3, Vec3};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// Largest distance between two surfels taken for one surface, metres.
+pub const COINCIDE_M: f32 = 0.01;
+
+/// Merges the copies due at frame `now` (see
+/// [`FusionConfig::merge_copies_after_frames`]): every stable surfel
+/// created in the cleanup span that ends `merge_copies_after_frames` before
+/// `now` is merged into the nearest older, inactive, stable surfel within
+/// [`COINCIDE_M`] with a normal within the fusion's gate, which takes its
+/// `last_seen`. Returns how many were merged (marked absorbed, removed at
+/// the next cleanup).
+pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usize {
+    let delay = config.merge_copies_after_frames;
+    if delay == 0 || now < delay {
+        return 0;
+    }
+    // Every surfel still in the map and older than the unstable age was
+    // stable at a cleanup, so the span covers each copy more than once.
+    let young_to = now - delay;
+    let young_from = young_to
+        .saturating_sub(3 * config.cleanup_interval_frames.max(1) + config.unstable_max_age);
+    let active_from = config.active_at(now).start;
+    let stable = config.stable_confidence;
+    let first_seen = map.first_seen();
+    let young: Vec<u32> = (0..map.len())
+        .filter(|&i| {
+            (young_from..young_to).contains(&first_seen[i]) && map.confidences()[i] >= stable
+        })
+        .map(|i| i as u32)
+        .collect();
+    if young.is_empty() {
+        return 0;
+    }
+    let tol = COINCIDE_M;
+    let cell = |p: Vec3| (p / tol).floor().as_ivec3();
+    let mut grid: HashMap<IVec3, Vec<u32>> = HashMap::with_capacity(young.len());
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for &j in &young {
+        let p = map.positions()[j as usize];
+        lo = lo.min(p);
+        hi = hi.max(p);
+        grid.entry(cell(p)).or_default().push(j);
+    }
+    lo -= Vec3::splat(tol);
+    hi += Vec3::splat(tol);
+    let cos_gate = config.normal_gate_deg.to_radians().cos();
+    let map_ref = &*map;
+    let (positions, normals, confidences) = (
+        map_ref.positions(),
+        map_ref.normals(),
+        map_ref.confidences(),
+    );
+    // (young, old, distance) for every coinciding pair, found from the old side.
+    let mut pairs: Vec<(u32, u32, f32)> = (0..map_ref.len())
+        .into_par_iter()
+        .filter(|&b| {
+            first_seen[b] < young_from
+                && map_ref.last_seen()[b] < active_from
+                && confidences[b] >= stable
+                && positions[b].cmpge(lo).all()
+                && positions[b].cmple(hi).all()
+        })
+        .flat_map_iter(|b| {
+            let p = positions[b];
+            let c = cell(p);
+            let mut found = Vec::new();
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let Some(js) = grid.get(&c.saturating_add(IVec3::new(dx, dy, dz))) else {
+                            continue;
+                        };
+                        for &j in js {
+                            let d = positions[j as usize].distance(p);
+                            if d < tol && normals[j as usize].dot(normals[b]) >= cos_gate {
+                                found.push((j, b as u32, d));
+                            }
+                        }
+                    }
+                }
+            }
+            found
+        })
+        .collect();
+    pairs.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.2.total_cmp(&b.2)));
+    pairs.dedup_by_key(|p| p.0);
+    let mut merged = 0;
+    for (j, b, _) in pairs {
+        let (j, b) = (j as usize, b as usize);
+        if map.confidences()[b] < 0.0 || map.confidences()[j] < 0.0 {
+            continue;
+        }
+        let seen = map.last_seen()[j];
+        map.touch(b, seen);
+        map.absorb(j);
+        merged += 1;
+    }
+    merged
+}
