@@ -258,15 +258,6 @@ impl Relocaliser {
             self.config.candidates,
             &mut matches,
         );
-        // The photometric term compares with the previous fused frame, which
-        // is not where the camera is now: geometry alone. Nothing is held:
-        // the start (a keyframe's pose) is no motion prior, and the
-        // conditioning and free-space checks judge the view.
-        let icp_only = |c: &TrackerConfig| TrackerConfig {
-            mode: TrackerMode::Icp,
-            hold_below_eigenvalue: 0.0,
-            ..c.clone()
-        };
         let (normal, wide) = (icp_only(trackers.normal), icp_only(trackers.wide));
         let found = matches.iter().find_map(|m| {
             let keyframe = self.database.keyframes().get(m.keyframe)?;
@@ -322,6 +313,25 @@ impl Relocaliser {
         });
         self.matches = matches;
         found
+    }
+
+    /// The normal tracker (as [`Relocaliser::place`] runs it) from `from`
+    /// against the model as the keyframe of the last [`Relocaliser::place`]
+    /// saw it.
+    pub fn track_in_placed_view(
+        &self,
+        pyramid: &FramePyramid,
+        from: &DAffine3,
+        normal: &TrackerConfig,
+        workspace: &mut TrackerWorkspace,
+    ) -> TrackResult {
+        track(
+            pyramid,
+            &self.prediction,
+            from,
+            &icp_only(normal),
+            workspace,
+        )
     }
 
     /// Renders `model` from keyframe `id`'s pose, each pixel down to the
@@ -474,4 +484,16 @@ fn photometric_error(
     // a sign of another place.
     let offset = differences.iter().sum::<f32>() / count as f32;
     Some(differences.iter().map(|d| (d - offset).abs()).sum::<f32>() / count as f32)
+}
+
+/// `c` as relocalisation runs it. The photometric term compares with the
+/// previous fused frame, which is not where the camera is now: geometry
+/// alone. Nothing is held: the start (a keyframe's pose) is no motion
+/// prior, and the conditioning and free-space checks judge the view.
+fn icp_only(c: &TrackerConfig) -> TrackerConfig {
+    TrackerConfig {
+        mode: TrackerMode::Icp,
+        hold_below_eigenvalue: 0.0,
+        ..c.clone()
+    }
 }
