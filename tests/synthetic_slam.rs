@@ -157,8 +157,12 @@ fn pipeline_follows_the_known_trajectory_with_kinect_noise() {
     assert_eq!(lost_count(&reports), 0);
     let a = ate(slam.trajectory(), &truth, 0.01).expect("ate");
     // Depth noise here is 1.2 mm * z^2 per pixel, white, at 1.1-4.7 m: up to
-    // 2.6 cm, far more than teddy's 1-2 m; 1.4 cm is measured today.
-    assert!(a.rmse_m < 0.02, "ATE {} m", a.rmse_m);
+    // 2.6 cm, far more than teddy's 1-2 m. Frames 11-21 view a wall and the
+    // floor: with the free direction solved they stepped ~1 cm a frame the
+    // wrong way, reported tracked (ATE 1.4 cm); held at the feature
+    // estimate, which is itself ~1 cm off a frame at this noise, they are
+    // reported held and the ATE is 2.1 cm.
+    assert!(a.rmse_m < 0.025, "ATE {} m", a.rmse_m);
     assert!(slam.map().all_finite());
 }
 
