@@ -34,7 +34,7 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
     let active_from = config.active_at(now).start;
     let stable = config.stable_confidence;
     let first_seen = map.first_seen();
-    let young: Vec<u32> = (0..map.len())
+    let young: Vec<u32> = (0..map.common_len())
         .filter(|&i| {
             (young_from..young_to).contains(&first_seen[i]) && map.confidences()[i] >= stable
         })
@@ -63,7 +63,7 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
         map_ref.confidences(),
     );
     // (young, old, distance) for every coinciding pair, found from the old side.
-    let mut pairs: Vec<(u32, u32, f32)> = (0..map_ref.len())
+    let mut pairs: Vec<(u32, u32, f32)> = (0..map_ref.common_len())
         .into_par_iter()
         .filter(|&b| {
             first_seen[b] < young_from
@@ -108,4 +108,64 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
         merged += 1;
     }
     merged
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A cleanup frame at which copies created at frame 300 are due.
+    fn due(config: &FusionConfig) -> u32 {
+        300 + config.merge_copies_after_frames + config.cleanup_interval_frames
+    }
+
+    /// An old surfel (frame 0, so inactive at [`due`]) and a copy made at
+    /// frame 300, `offset` beside it with normal `copy_normal`.
+    fn old_and_copy(offset: Vec3, copy_normal: Vec3) -> SurfelMap {
+        let mut map = SurfelMap::default();
+        map.push(Vec3::new(0.0, 0.0, 2.0), Vec3::Z, [0; 4], 0.005, 20.0, 0);
+        map.push(
+            Vec3::new(0.0, 0.0, 2.0) + offset,
+            copy_normal,
+            [0; 4],
+            0.005,
+            20.0,
+            300,
+        );
+        map
+    }
+
+    #[test]
+    fn a_copy_on_an_inactive_surfel_is_merged_into_it_and_wakes_it() {
+        let config = FusionConfig::default();
+        let now = due(&config);
+        let mut map = old_and_copy(Vec3::new(0.004, 0.0, 0.003), Vec3::Z);
+        assert_eq!(merge_copies(&mut map, &config, now), 1);
+        assert!(map.confidences()[1] < 0.0, "the copy is absorbed");
+        assert_eq!(map.last_seen()[0], 300, "the old surfel is active again");
+        // Its geometry stays where it was.
+        assert_eq!(map.positions()[0], Vec3::new(0.0, 0.0, 2.0));
+    }
+
+    #[test]
+    fn far_turned_active_or_not_yet_due_copies_stay() {
+        let config = FusionConfig::default();
+        let now = due(&config);
+        let mut far = old_and_copy(Vec3::new(0.02, 0.0, 0.0), Vec3::Z);
+        assert_eq!(merge_copies(&mut far, &config, now), 0);
+        let mut turned = old_and_copy(Vec3::ZERO, Vec3::X);
+        assert_eq!(merge_copies(&mut turned, &config, now), 0);
+        let mut early = old_and_copy(Vec3::ZERO, Vec3::Z);
+        assert_eq!(merge_copies(&mut early, &config, 310), 0);
+        // An old surfel still active is fusion's to merge with, not ours.
+        let mut active = old_and_copy(Vec3::ZERO, Vec3::Z);
+        active.touch(0, 250);
+        assert_eq!(merge_copies(&mut active, &config, now), 0);
+        let off = FusionConfig {
+            merge_copies_after_frames: 0,
+            ..config
+        };
+        let mut never = old_and_copy(Vec3::ZERO, Vec3::Z);
+        assert_eq!(merge_copies(&mut never, &off, now), 0);
+    }
 }
