@@ -33,6 +33,13 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
         .saturating_sub(3 * config.cleanup_interval_frames.max(1) + config.unstable_max_age);
     let active_from = config.active_at(now).start;
     let stable = config.stable_confidence;
+    // Nothing inactive (a run shorter than the window): no work, and no
+    // allocation that would raise the wasm memory's high-water mark.
+    let n = map.common_len();
+    let (last_seen, confidences) = (map.last_seen(), map.confidences());
+    if !(0..n).any(|b| last_seen[b] < active_from && confidences[b] >= stable) {
+        return 0;
+    }
     let first_seen = map.first_seen();
     let young: Vec<u32> = (0..map.common_len())
         .filter(|&i| {
