@@ -36,45 +36,37 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
     // Nothing inactive (a run shorter than the window): no work, and no
     // allocation that would raise the wasm memory's high-water mark.
     let n = map.common_len();
-    let (last_seen, confidences) = (map.last_seen(), map.confidences());
+    let (positions, normals) = (map.positions(), map.normals());
+    let (first_seen, last_seen, confidences) =
+        (map.first_seen(), map.last_seen(), map.confidences());
     if !(0..n).any(|b| last_seen[b] < active_from && confidences[b] >= stable) {
         return 0;
     }
-    let first_seen = map.first_seen();
-    let young: Vec<u32> = (0..map.common_len())
-        .filter(|&i| {
-            (young_from..young_to).contains(&first_seen[i]) && map.confidences()[i] >= stable
-        })
+    let young: Vec<u32> = (0..n)
+        .filter(|&i| (young_from..young_to).contains(&first_seen[i]) && confidences[i] >= stable)
         .map(|i| i as u32)
         .collect();
     if young.is_empty() {
         return 0;
     }
-    let tol = COINCIDE_M;
-    let cell = |p: Vec3| (p / tol).floor().as_ivec3();
+    let cell = |p: Vec3| (p / COINCIDE_M).floor().as_ivec3();
     let mut grid: HashMap<IVec3, Vec<u32>> = HashMap::with_capacity(young.len());
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for &j in &young {
-        let p = map.positions()[j as usize];
+        let p = positions[j as usize];
         lo = lo.min(p);
         hi = hi.max(p);
         grid.entry(cell(p)).or_default().push(j);
     }
-    lo -= Vec3::splat(tol);
-    hi += Vec3::splat(tol);
+    lo -= Vec3::splat(COINCIDE_M);
+    hi += Vec3::splat(COINCIDE_M);
     let cos_gate = config.normal_gate_deg.to_radians().cos();
-    let map_ref = &*map;
-    let (positions, normals, confidences) = (
-        map_ref.positions(),
-        map_ref.normals(),
-        map_ref.confidences(),
-    );
     // (young, old, distance) for every coinciding pair, found from the old side.
-    let mut pairs: Vec<(u32, u32, f32)> = (0..map_ref.common_len())
+    let mut pairs: Vec<(u32, u32, f32)> = (0..n)
         .into_par_iter()
         .filter(|&b| {
             first_seen[b] < young_from
-                && map_ref.last_seen()[b] < active_from
+                && last_seen[b] < active_from
                 && confidences[b] >= stable
                 && positions[b].cmpge(lo).all()
                 && positions[b].cmple(hi).all()
@@ -91,7 +83,7 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
                         };
                         for &j in js {
                             let d = positions[j as usize].distance(p);
-                            if d < tol && normals[j as usize].dot(normals[b]) >= cos_gate {
+                            if d < COINCIDE_M && normals[j as usize].dot(normals[b]) >= cos_gate {
                                 found.push((j, b as u32, d));
                             }
                         }
