@@ -579,8 +579,10 @@ fn teddy_ping_pong_1500_frames() {
         .frames
         .len();
     let order: Vec<usize> = (0..n).chain((1..n - 1).rev()).cycle().take(1500).collect();
+    let mut ate_m = Vec::new();
     for global in [false, true] {
         let run = real_run_in(&dir, global, &order);
+        ate_m.push(run.ate_m);
         let looks = run.looked.iter().filter(|l| **l).count();
         let closed = run.matches.iter().filter(|m| m.closure.closed).count();
         println!(
@@ -610,4 +612,11 @@ fn teddy_ping_pong_1500_frames() {
             );
         }
     }
+    // A closure it makes must pay for itself (it once cost 0.86 -> 1.06 cm).
+    assert!(
+        ate_m[1] <= ate_m[0] * 1.05,
+        "the global check made teddy worse: {:.3} -> {:.3} cm",
+        ate_m[0] * 100.0,
+        ate_m[1] * 100.0
+    );
 }

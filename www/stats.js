@@ -40,6 +40,7 @@ export class Stats {
     this.framesRelocalised = 0;
     this.lastRelocalised = null; // {frame, keyframe}: the latest frame placed by relocalisation
     this.loopClosures = null; // closures so far (null: the module reports none)
+    this.globalLoopClosures = 0; // of those, closed by the global check
     this.hasLoopStage = false;
     this.recent = []; // {t, timings, wall}
     this.fps = 0;
@@ -68,6 +69,7 @@ export class Stats {
       this.lastRelocalised = { frame: msg.index, keyframe: r.relocalisedFrom };
     }
     if (Number.isFinite(r.loopClosures)) this.loopClosures = r.loopClosures;
+    if (Number.isFinite(r.globalLoopClosures)) this.globalLoopClosures = r.globalLoopClosures;
     if (Number.isFinite(r.timings?.loop)) this.hasLoopStage = true;
     // The report's count is what the map holds (absorbed surfels awaiting
     // compaction left out, as in the PLY); the arrays' length is only what is drawn.
@@ -136,7 +138,12 @@ export class Stats {
           ? `${this.framesRelocalised} (last: frame ${this.lastRelocalised.frame + 1} at keyframe ${this.lastRelocalised.keyframe + 1})`
           : `${this.framesRelocalised}`,
       ],
-      ['loop closures', this.loopClosures === null ? '–' : `${this.loopClosures}`],
+      [
+        'loop closures',
+        this.loopClosures === null
+          ? '–'
+          : `${this.loopClosures}` + (this.globalLoopClosures > 0 ? ` (${this.globalLoopClosures} global)` : ''),
+      ],
       ['failed (errors)', `${this.framesFailed}`],
       ['last verdict', this.lastVerdict ? this.lastVerdict + (this.lastLostReason ? ` (${this.lastLostReason})` : '') : '–'],
       ['surfels', this.surfels.toLocaleString('en-US')],

@@ -326,7 +326,7 @@ fn print_summary(
         }
     };
     println!(
-        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {failed} unreadable, {} loop closures, {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
+        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {failed} unreadable, {} loop closures ({} global), {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
         args.dataset.display(),
         frames,
         counts.tracked,
@@ -334,6 +334,7 @@ fn print_summary(
         counts.recovered,
         counts.held,
         slam.loop_closures(),
+        slam.global_loop_closures(),
         slam.map().live_len(),
     );
 }

@@ -100,6 +100,8 @@ pub struct LoopCloser {
     matched: Vec<usize>,
     graph: Option<DeformationGraph>,
     closures: u32,
+    /// Of `closures`, those made by the global check.
+    global_closures: u32,
     /// Frame of the last global closure.
     last_global: Option<u32>,
 }
@@ -118,6 +120,7 @@ impl LoopCloser {
             matched: Vec::new(),
             graph: None,
             closures: 0,
+            global_closures: 0,
             last_global: None,
         }
     }
@@ -134,6 +137,13 @@ impl LoopCloser {
         self.closures
     }
 
+    /// Of [`Self::closures`], those made by the global check (a place seen
+    /// long ago, found by the keyframe ferns).
+    #[must_use]
+    pub fn global_closures(&self) -> u32 {
+        self.global_closures
+    }
+
     /// Forgets the map-dependent state (the map was cleared).
     pub fn reset(&mut self) {
         self.active.clear();
@@ -142,6 +152,7 @@ impl LoopCloser {
         self.matched.clear();
         self.graph = None;
         self.closures = 0;
+        self.global_closures = 0;
         self.last_global = None;
     }
 
@@ -310,6 +321,7 @@ impl LoopCloser {
                 outcome.deform = Some(report);
                 outcome.global = Some(GlobalClosure::of(&found, true));
                 self.closures += 1;
+                self.global_closures += 1;
                 self.last_global = Some(now);
             }
             Err(e) => {

@@ -81,13 +81,11 @@ pub struct LoopClosureConfig {
     pub deform: DeformConfig,
     /// The global check (a place seen long ago, found by the keyframe
     /// ferns) for drifts the local check refuses; off when `enabled` is.
-    /// Off by default: right on the synthetic loops and on teddy and
-    /// ICL-NUIM forward and back, and since it refuses a match the old
-    /// model also holds at the tracked pose, no wrong closure on teddy
-    /// played back and forth for 1500 frames (before: frame 590, 10.6 cm
-    /// 6.3 degrees, ATE 0.90 -> 2.76 cm). But its one right closure there
-    /// (frame 370, 0.7 cm 2.0 degrees) costs ATE: 0.86 -> 1.06 cm
-    /// (`tests/global_loop.rs`, ignored test `teddy_ping_pong_1500_frames`).
+    /// On by default: right on the synthetic loops, no closure and the same
+    /// ATE on teddy and ICL-NUIM forward and back, and no closure on teddy
+    /// played back and forth for 1500 frames, where it once closed wrongly
+    /// (`tests/global_loop.rs`; the last one is the ignored test
+    /// `teddy_ping_pong_1500_frames`).
     pub global: GlobalConfig,
 }
 
@@ -116,10 +114,7 @@ impl Default for LoopClosureConfig {
             free_space_step: 2,
             max_free_space_fraction: 0.05,
             deform: DeformConfig::default(),
-            global: GlobalConfig {
-                enabled: false,
-                ..GlobalConfig::default()
-            },
+            global: GlobalConfig::default(),
         }
     }
 }

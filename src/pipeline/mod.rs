@@ -158,6 +158,13 @@ impl Pipeline {
         self.loop_closer.closures()
     }
 
+    /// Of [`Self::loop_closures`], those the global check made (a place
+    /// seen long ago, found among the keyframes).
+    #[must_use]
+    pub fn global_loop_closures(&self) -> u32 {
+        self.loop_closer.global_closures()
+    }
+
     /// Verdict counts since creation or the last reset.
     #[must_use]
     pub fn counts(&self) -> VerdictCounts {
@@ -454,6 +461,7 @@ impl Pipeline {
             counts: self.counts,
             checks: tracked.checks,
             loop_closures: self.loop_closer.closures(),
+            global_loop_closures: self.loop_closer.global_closures(),
             loop_closed: false,
             loop_registration: None,
             loop_global_looked: false,

@@ -124,6 +124,8 @@ pub struct FrameReport {
     /// Loop closures (the map and trajectory bent) of the run so far, this
     /// frame included.
     pub loop_closures: u32,
+    /// Of `loop_closures`, those the global check made.
+    pub global_loop_closures: u32,
     /// This frame closed a loop: every surfel and past pose may have moved
     /// (the whole map is in the changed range).
     pub loop_closed: bool,

@@ -49,6 +49,8 @@ export interface SlamConfig {
   activeWindowFrames?: number;
   /** Local loop closure: bend the map and trajectory when the active model meets the inactive one. */
   loopClosure?: boolean;
+  /** Global loop closure (needs loopClosure): look the frame up among keyframes older than the active window and bend the map onto a verified match. */
+  globalLoopClosure?: boolean;
   /** Relocalise a lost camera from the fern keyframes. */
   relocalise?: boolean;
   /** Depth noise model weighting tracking and fusion (default: the preset's; 'uniform' = no weighting). */
@@ -155,6 +157,10 @@ pub const CONFIG_KEYS: &[ConfigKey] = &[
     key(
         "loopClosure",
         Setter::Bool(|c, v| c.loop_closure.enabled = v),
+    ),
+    key(
+        "globalLoopClosure",
+        Setter::Bool(|c, v| c.loop_closure.global.enabled = v),
     ),
     key("relocalise", Setter::Bool(|c, v| c.relocalise.enabled = v)),
 ];

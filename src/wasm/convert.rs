@@ -51,6 +51,8 @@ export interface FrameReport {
   relocalisedFrom: number | null;
   /** Loop closures of the run so far (map and trajectory bent), this frame included. */
   loopClosures: number;
+  /** Of loopClosures, those closed by the global check (a place seen long ago, found among the keyframes). */
+  globalLoopClosures: number;
   /** This frame closed a loop: every surfel and past pose may have moved (take the whole changed range and the trajectory again). */
   loopClosed: boolean;
   /** Milliseconds per stage. */
@@ -210,6 +212,7 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
                 .map_or(JsValue::NULL, |frame| frame.into()),
         ),
         ("loopClosures", r.loop_closures.into()),
+        ("globalLoopClosures", r.global_loop_closures.into()),
         ("loopClosed", r.loop_closed.into()),
         ("timings", timings.into()),
     ])
