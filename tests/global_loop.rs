@@ -102,7 +102,12 @@ impl Run {
 }
 
 fn run(config: &SlamConfig, frames: usize, shot: impl Fn(usize) -> (Shot, bool)) -> Run {
-    let mut slam = Pipeline::new(config.clone()).expect("config");
+    run_on(Pipeline::new(config.clone()).expect("config"), frames, shot)
+}
+
+/// [`run`] on a pipeline that may have run before (its config renders).
+fn run_on(mut slam: Pipeline, frames: usize, shot: impl Fn(usize) -> (Shot, bool)) -> Run {
+    let config = slam.config().clone();
     let mut origin_inv = None;
     let (mut reports, mut truth) = (Vec::new(), Vec::new());
     for i in 0..frames {
@@ -141,7 +146,12 @@ fn loop_config(global: bool) -> SlamConfig {
 /// check's limit (0.15 m).
 fn drifting_loop(global: bool) -> Run {
     let config = loop_config(global);
-    run(&config, 280, |i| {
+    run(&config, 280, drifting_shot(&config))
+}
+
+/// Frame `i` of [`drifting_loop`] for `config`.
+fn drifting_shot(config: &SlamConfig) -> impl Fn(usize) -> (Shot, bool) + '_ {
+    |i| {
         let mut k = config.intrinsics;
         if (30..200).contains(&i) {
             k.fx /= 1.03;
@@ -153,7 +163,7 @@ fn drifting_loop(global: bool) -> Run {
             k,
         };
         (shot, false)
-    })
+    }
 }
 
 fn map_error_of(run: &Run) -> synthetic::MapError {
@@ -205,6 +215,44 @@ fn a_drift_beyond_the_local_limit_is_closed_globally() {
         "{global_map:?} vs {local_map:?}"
     );
     assert!(global.slam.map().all_finite());
+}
+
+/// A reset after a global closure (280 frames, past every cleanup and the
+/// cooldown) forgets the closure counts, and the same frames pushed again
+/// close the same loop and give the same trajectory.
+#[test]
+fn a_reset_after_a_global_closure_starts_clean() {
+    let first = drifting_loop(true);
+    let closures = (
+        first.slam.loop_closures(),
+        first.slam.global_loop_closures(),
+    );
+    assert!(closures.1 >= 1, "no global closure to forget");
+    assert_eq!(closures.1 as usize, first.global_closures());
+    let mut slam = first.slam;
+    slam.reset();
+    assert_eq!((slam.loop_closures(), slam.global_loop_closures()), (0, 0));
+    assert_eq!((slam.frames(), slam.map().len()), (0, 0));
+    let config = slam.config().clone();
+    let again = run_on(slam, 280, drifting_shot(&config));
+    assert_eq!(
+        (
+            again.slam.loop_closures(),
+            again.slam.global_loop_closures()
+        ),
+        closures
+    );
+    let worst = first
+        .reports
+        .iter()
+        .zip(&again.reports)
+        .map(|(a, b)| (a.world_from_camera.translation - b.world_from_camera.translation).length())
+        .fold(0.0, f64::max);
+    assert!(
+        worst <= 1e-3,
+        "poses differ by up to {worst} m after the reset"
+    );
+    assert!(again.slam.map().all_finite());
 }
 
 /// The room with a row of identical boxes (one material) 0.7 m apart along
