@@ -17,6 +17,7 @@ pub mod fusion;
 pub mod loop_closure;
 pub mod mesh;
 pub mod noise;
+pub mod ordered_sum;
 pub mod pipeline;
 pub mod preprocess;
 pub mod se3;

@@ -25,11 +25,11 @@
 
 use crate::fusion::Prediction;
 use crate::noise::SensorNoise;
+use crate::ordered_sum::sum_in_blocks;
 use crate::preprocess::PyramidLevel;
 use crate::se3::RigidF32;
 use crate::se3::{NormalEquations, RowAccumulator};
 use glam::Vec3;
-use rayon::prelude::*;
 
 /// Gates and robust weight of one ICP step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -126,60 +126,77 @@ pub fn icp_step(
     let cos_gate = gates.normal_gate_deg.to_radians().cos();
     let gate2 = gates.distance_gate_m * gates.distance_gate_m;
     let stride = stride.max(1);
-    (0..pk.height.div_ceil(stride))
-        .into_par_iter()
-        .fold(IcpStep::default, |mut acc, row| {
-            let base = row * stride * pk.width;
-            let mut sums = RowAccumulator::default();
-            let (mut candidate_weight, mut inlier_weight) = (0.0f32, 0.0f32);
-            for u in (0..pk.width).step_by(stride) {
-                let n_model = prediction.normals[base + u];
-                if n_model == Vec3::ZERO {
-                    continue;
-                }
-                let p = camera_from_world.point(prediction.vertices[base + u]);
-                if p.z <= 0.0 {
-                    continue;
-                }
-                let Some(j) = tk.pixel_index(tk.project(p)) else {
-                    continue;
-                };
-                acc.candidates += 1;
-                let wp = noise.map_or(1.0, |w| w.noise.weight(w.noise.axial_m(p.z)));
-                candidate_weight += wp;
-                let q = target.vertices[j];
-                let n = target.normals[j];
-                if q.z <= 0.0 || n == Vec3::ZERO {
-                    continue;
-                }
-                let d = p - q;
-                if d.length_squared() > gate2 {
-                    continue;
-                }
-                if camera_from_world.vector(n_model).dot(n) < cos_gate {
-                    continue;
-                }
-                let scale = noise.map_or(1.0, |w| w.point_to_plane_scale(q, p, n));
-                let r = n.dot(d) * scale;
-                let c = p.cross(n) * scale;
-                let ns = n * scale;
-                let w = if r.abs() <= gates.huber_m {
-                    1.0
-                } else {
-                    gates.huber_m / r.abs()
-                };
-                sums.add(&[c.x, c.y, c.z, ns.x, ns.y, ns.z], r, w);
-                inlier_weight += wp;
+    // Fixed blocks of rows summed in row order: the same bits on any
+    // number of threads (see `ordered_sum`).
+    let row_sum = |row: usize| {
+        let mut acc = IcpStep::default();
+        let base = row * stride * pk.width;
+        let mut sums = RowAccumulator::default();
+        let (mut candidate_weight, mut inlier_weight) = (0.0f32, 0.0f32);
+        for u in (0..pk.width).step_by(stride) {
+            let n_model = prediction.normals[base + u];
+            if n_model == Vec3::ZERO {
+                continue;
             }
-            sums.flush_into(&mut acc.system);
-            acc.candidate_weight += f64::from(candidate_weight);
-            acc.inlier_weight += f64::from(inlier_weight);
-            acc
-        })
-        .reduce(IcpStep::default, |a, b| IcpStep {
-            system: a.system.merged(&b.system),
-            candidates: a.candidates + b.candidates,
-            candidate_weight: a.candidate_weight + b.candidate_weight,
-            inlier_weight: a.inlier_weight + b.inlier_weight,
-        })
+            let p = camera_from_world.point(prediction.vertices[base + u]);
+            if p.z <= 0.0 {
+                continue;
+            }
+            let Some(j) = tk.pixel_index(tk.project(p)) else {
+                continue;
+            };
+            acc.candidates += 1;
+            let wp = noise.map_or(1.0, |w| w.noise.weight(w.noise.axial_m(p.z)));
+            candidate_weight += wp;
+            let q = target.vertices[j];
+            let n = target.normals[j];
+            if q.z <= 0.0 || n == Vec3::ZERO {
+                continue;
+            }
+            let d = p - q;
+            if d.length_squared() > gate2 {
+                continue;
+            }
+            if camera_from_world.vector(n_model).dot(n) < cos_gate {
+                continue;
+            }
+            let scale = noise.map_or(1.0, |w| w.point_to_plane_scale(q, p, n));
+            let r = n.dot(d) * scale;
+            let c = p.cross(n) * scale;
+            let ns = n * scale;
+            let w = if r.abs() <= gates.huber_m {
+                1.0
+            } else {
+                gates.huber_m / r.abs()
+            };
+            sums.add(&[c.x, c.y, c.z, ns.x, ns.y, ns.z], r, w);
+            inlier_weight += wp;
+        }
+        sums.flush_into(&mut acc.system);
+        acc.candidate_weight += f64::from(candidate_weight);
+        acc.inlier_weight += f64::from(inlier_weight);
+        acc
+    };
+    sum_in_blocks(
+        pk.height.div_ceil(stride),
+        ROWS_PER_BLOCK,
+        |rows| rows.map(row_sum).fold(IcpStep::default(), IcpStep::merged),
+        IcpStep::merged,
+    )
+}
+
+/// Rows of source points summed together before the blocks are combined.
+const ROWS_PER_BLOCK: usize = 4;
+
+impl IcpStep {
+    /// Sum of two partial steps.
+    #[must_use]
+    fn merged(self, other: Self) -> Self {
+        Self {
+            system: self.system.merged(&other.system),
+            candidates: self.candidates + other.candidates,
+            candidate_weight: self.candidate_weight + other.candidate_weight,
+            inlier_weight: self.inlier_weight + other.inlier_weight,
+        }
+    }
 }

@@ -52,6 +52,7 @@
 //! each residual gets a Huber weight.
 
 use crate::fusion::Prediction;
+use crate::ordered_sum::sum_in_blocks;
 use crate::preprocess::{FramePyramid, PyramidLevel};
 use crate::se3::NormalEquations;
 use crate::se3::RigidF32;
@@ -218,11 +219,14 @@ impl RgbWorkspace {
         // Bilinear sampling needs (u, v) and (u + 1, v + 1) inside, and the
         // gradient is zero on the border row and column: stay one pixel in.
         let (u_max, v_max) = ((w - 2) as f32, (h - 2) as f32);
-        buffers
-            .references
-            .par_chunks(CHUNK)
-            .fold(RgbStep::default, |mut acc, chunk| {
-                for reference in chunk {
+        let references = &buffers.references;
+        // Fixed chunks summed in order: the same bits on any thread count.
+        sum_in_blocks(
+            references.len(),
+            CHUNK,
+            |range| {
+                let mut acc = RgbStep::default();
+                for reference in &references[range] {
                     let p = camera_from_world.point(reference.point_in_world);
                     if p.z <= 0.0 {
                         continue;
@@ -253,11 +257,12 @@ impl RgbWorkspace {
                         .add(&[rot.x, rot.y, rot.z, c.x, c.y, c.z], r, weight);
                 }
                 acc
-            })
-            .reduce(RgbStep::default, |a, b| RgbStep {
+            },
+            |a, b| RgbStep {
                 system: a.system.merged(&b.system),
                 candidates: a.candidates + b.candidates,
-            })
+            },
+        )
     }
 }
 
