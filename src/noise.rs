@@ -228,6 +228,42 @@ fn acos_unit(c: f32) -> f32 {
     (1.0 - c).sqrt() * (1.570_728_8 + c * (-0.212_114_4 + c * (0.074_261 - 0.018_729_3 * c)))
 }
 
+/// Whether `depth` (metres, `width` columns, 0 = no measurement) is clean,
+/// as rendered depth is: the 75th percentile of the second differences of
+/// depth along rows, over valid triples that are not depth edges (under
+/// 5 cm), at most [`CLEAN_DEPTH_MAX_M`]. On a plane depth is nearly linear
+/// over three pixels (the curvature of `1 / (a u + b)` is micrometres), so
+/// what remains is noise and quantisation: ICL-NUIM's clean renderings read
+/// a few tenths of a millimetre (1/5000 m steps), Kinect-class depth and
+/// its simulations millimetres. `None` with fewer than 1000 triples.
+#[must_use]
+pub fn depth_is_clean(depth: &[f32], width: usize) -> Option<bool> {
+    if width < 3 {
+        return None;
+    }
+    let mut second: Vec<f32> = Vec::new();
+    for row in depth.chunks_exact(width).step_by(2) {
+        for t in row.windows(3).step_by(2) {
+            if t.iter().all(|z| *z > 0.0 && z.is_finite()) {
+                let d2 = (t[0] - 2.0 * t[1] + t[2]).abs();
+                if d2 < 0.05 {
+                    second.push(d2);
+                }
+            }
+        }
+    }
+    if second.len() < 1000 {
+        return None;
+    }
+    let at = second.len() * 3 / 4;
+    let (_, p75, _) = second.select_nth_unstable_by(at, f32::total_cmp);
+    Some(*p75 <= CLEAN_DEPTH_MAX_M)
+}
+
+/// Largest 75th percentile of depth's second differences (metres) that
+/// [`depth_is_clean`] calls clean: two 1/5000 m quantisation steps.
+pub const CLEAN_DEPTH_MAX_M: f32 = 0.0004;
+
 impl Default for SensorNoise {
     /// The structured-light model: most RGB-D cameras with custom
     /// intrinsics are structured-light or stereo, whose noise grows with z^2.
@@ -238,6 +274,31 @@ impl Default for SensorNoise {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn rendered_depth_is_clean_and_noisy_depth_is_not() {
+        let (w, h) = (160, 120);
+        // A slanted plane, quantised to 1/5000 m as ICL-NUIM stores it.
+        let plane: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (u, v) = ((i % w) as f32, (i / w) as f32);
+                let z = 1.0 / (0.4 + 0.0009 * u + 0.0004 * v);
+                (z * 5000.0).round() / 5000.0
+            })
+            .collect();
+        assert_eq!(super::depth_is_clean(&plane, w), Some(true));
+        // The same with 2 mm of deterministic pseudo-noise.
+        let noisy: Vec<f32> = plane
+            .iter()
+            .enumerate()
+            .map(|(i, z)| {
+                let x = (i as u32).wrapping_mul(2_654_435_761) as f32 / u32::MAX as f32;
+                z + 0.004 * (x - 0.5) * 1.7
+            })
+            .collect();
+        assert_eq!(super::depth_is_clean(&noisy, w), Some(false));
+        assert_eq!(super::depth_is_clean(&plane[..100], w), None);
+    }
+
     use super::*;
 
     #[test]

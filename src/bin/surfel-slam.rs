@@ -84,7 +84,8 @@ pub(crate) struct TrackingArgs {
     /// structured-light, rendered, uniform (no weighting), or coefficients
     /// `base,quadratic[,offset[,angle[,lateral_px[,edge]]]]` of
     /// sigma_z = base + quadratic (z - offset)^2 (metres) [default: preset's:
-    /// uniform for tum-fr1/tum-fr2/tum-fr3/7-scenes, rendered icl-nuim].
+    /// uniform for tum-fr1/tum-fr2/tum-fr3, kinect-v1 for 7-scenes; icl-nuim:
+    /// rendered when the first frame's depth is clean, else structured-light].
     #[arg(long, value_parser = noise_parser)]
     noise: Option<SensorNoise>,
     /// Experiments: smallest noise weight of a fused measurement.

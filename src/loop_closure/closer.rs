@@ -236,7 +236,8 @@ impl LoopCloser {
         }
         self.collect_matches(map, &registration);
         if registration.moves_map(&self.config) {
-            match self.bend(map, trajectory, pose, now) {
+            let corrected = registration.correction * *pose;
+            match self.bend(map, trajectory, (pose, corrected)) {
                 Ok(report) => {
                     outcome.closed = true;
                     outcome.deform = Some(report);
@@ -315,7 +316,8 @@ impl LoopCloser {
         let view = look.relocaliser.keyframe_view();
         let inactive_before = frame.fusion.active_at(now).start;
         self.collect_global(map, &found, view, look.pyramid, (now, inactive_before));
-        match self.bend(map, trajectory, pose, now) {
+        let corrected = found.registration.world_from_camera;
+        match self.bend(map, trajectory, (pose, corrected)) {
             Ok(report) => {
                 outcome.closed = true;
                 outcome.deform = Some(report);
@@ -483,13 +485,14 @@ impl LoopCloser {
     }
 
     /// Builds the graph over the map, optimises it for the constraints and,
-    /// when accepted, moves every surfel, every past pose and `pose`.
+    /// when accepted, moves every surfel and every past pose, and puts
+    /// `pose` (the current frame's) at `corrected`, where the registration put it:
+    /// the constraints hold only to `max_constraint_error_m`.
     fn bend(
         &mut self,
         map: &mut SurfelMap,
         trajectory: &mut [(f64, DAffine3)],
-        pose: &mut DAffine3,
-        now: u32,
+        (pose, corrected): (&mut DAffine3, DAffine3),
     ) -> Result<DeformReport, DeformError> {
         let mut graph = DeformationGraph::from_samples(
             &map.positions,
@@ -508,7 +511,7 @@ impl LoopCloser {
         for (i, (_, p)) in trajectory.iter_mut().enumerate() {
             *p = graph.apply_to_pose(p, u32::try_from(i).unwrap_or(u32::MAX));
         }
-        *pose = graph.apply_to_pose(pose, now);
+        *pose = corrected;
         self.graph = Some(graph);
         Ok(report)
     }

@@ -30,6 +30,15 @@ pub struct SlamConfig {
     pub relocalise: RelocaliseConfig,
     /// Loop closure (the active model registered against the inactive one).
     pub loop_closure: LoopClosureConfig,
+    /// When set, the first frame's depth is measured
+    /// ([`crate::noise::depth_is_clean`]) and, if it is clean (rendered),
+    /// tracking and fusion use this noise model instead of theirs. The
+    /// ICL-NUIM preset sets it: the dataset ships clean and Kinect-noised
+    /// renderings in one format, and the structured-light weighting that
+    /// the noisy ones need slid clean views along a wall's join with the
+    /// ceiling (1508 frames: 0.57 cm ATE against 0.03 cm unweighted).
+    /// [`Self::set_noise`] clears it.
+    pub clean_depth_noise: Option<SensorNoise>,
 }
 
 impl SlamConfig {
@@ -51,6 +60,7 @@ impl SlamConfig {
             },
             relocalise: RelocaliseConfig::default(),
             loop_closure: LoopClosureConfig::default(),
+            clean_depth_noise: preset.clean_depth_noise(),
         }
     }
 
@@ -59,6 +69,7 @@ impl SlamConfig {
     pub fn set_noise(&mut self, noise: SensorNoise) {
         self.tracker.noise = noise;
         self.fusion.noise = noise;
+        self.clean_depth_noise = None;
     }
 
     /// Intrinsics of the images tracked and fused (halved with `half_resolution`).
@@ -98,7 +109,10 @@ impl SlamConfig {
             return Err(intrinsics_error(problem));
         }
         self.depth.validate()?;
-        for noise in [&self.tracker.noise, &self.fusion.noise] {
+        for noise in [&self.tracker.noise, &self.fusion.noise]
+            .into_iter()
+            .chain(self.clean_depth_noise.as_ref())
+        {
             if let Some(problem) = noise.problem() {
                 return Err(PipelineError::InvalidConfig(problem));
             }

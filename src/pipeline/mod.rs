@@ -27,6 +27,7 @@ use crate::fusion::{
 };
 use crate::loop_closure::relocalise::Relocaliser;
 use crate::loop_closure::{GlobalLook, LoopCloser, LoopFrame, LoopOutcome};
+use crate::noise::{depth_is_clean, SensorNoise};
 use crate::preprocess::{half_resolution_into, FramePyramid};
 use crate::track::verify::TrackingChecks;
 use crate::track::{TrackerConfig, TrackerMode, TrackerWorkspace};
@@ -67,6 +68,9 @@ pub struct Pipeline {
     relocaliser: Relocaliser,
     /// The loop-closure stage.
     loop_closer: LoopCloser,
+    /// The tracker's and fusion's noise models as configured, before the
+    /// first frame's clean-depth check (`SlamConfig::clean_depth_noise`).
+    configured_noise: (SensorNoise, SensorNoise),
 }
 
 impl Pipeline {
@@ -90,6 +94,7 @@ impl Pipeline {
             relocaliser: Relocaliser::new(config.relocalise)
                 .map_err(|e| PipelineError::InvalidConfig(e.to_string()))?,
             loop_closer: LoopCloser::new(config.loop_closure.clone()),
+            configured_noise: (config.tracker.noise, config.fusion.noise),
             config,
             map: SurfelMap::default(),
             prediction: Prediction::new(photometric),
@@ -216,6 +221,9 @@ impl Pipeline {
         frame.expect_size(input.width, input.height)?;
         frame.validate()?;
         let index = self.frame_index;
+        if index == 0 {
+            self.choose_noise(frame);
+        }
         let t0 = now_ms();
         self.preprocess(frame);
         let t1 = now_ms();
@@ -254,6 +262,21 @@ impl Pipeline {
         report.loop_global_looked = closure.global_looked;
         report.loop_global = closure.global;
         Ok(report)
+    }
+
+    /// On the first frame: whether its depth is clean (the tracker's
+    /// holding reads it), and the configured noise models, or the
+    /// clean-depth one when the configuration has one and the depth is clean.
+    fn choose_noise(&mut self, frame: &RgbdFrame) {
+        let (mut tracker, mut fusion) = self.configured_noise;
+        let clean = depth_is_clean(&frame.depth_m, frame.width) == Some(true);
+        if let (true, Some(model)) = (clean, self.config.clean_depth_noise) {
+            (tracker, fusion) = (model, model);
+        }
+        self.config.tracker.clean_depth = clean;
+        self.config.tracker.noise = tracker;
+        self.config.fusion.noise = fusion;
+        self.recovery = recovery_tracker(&self.config.tracker);
     }
 
     /// Stage `preprocess`: halves the frame when asked, then builds the

@@ -155,6 +155,12 @@ pub struct TrackerConfig {
     /// (`examples/noisy_loop.rs`, `tests/degenerate_views.rs`), holds no
     /// frame of TUM fr3/teddy, ICL-NUIM kt0 or kt0 with Kinect noise.
     pub hold_below_eigenvalue: f64,
+    /// The depth is clean (rendered; see [`crate::noise::depth_is_clean`]):
+    /// a direction the coarse grid finds free is held only when the
+    /// full-resolution geometry leaves it free too
+    /// ([`FreeDirections::confirmed`]). The pipeline sets it from its
+    /// first frame.
+    pub clean_depth: bool,
     /// Lost when the frame-to-frame motion exceeds this translation, metres.
     pub max_translation_m: f64,
     /// Lost when the frame-to-frame motion exceeds this rotation, degrees.
@@ -185,6 +191,7 @@ impl Default for TrackerConfig {
             max_residual_m: 0.03,
             min_conditioning: 1e-5,
             hold_below_eigenvalue: 1e-3,
+            clean_depth: false,
             max_translation_m: 0.30,
             max_rotation_deg: 30.0,
             verify: VerifyConfig::default(),
@@ -332,16 +339,26 @@ pub fn track_holding(
     }
     let free = match (config.mode, pyramid.levels.last(), held) {
         (TrackerMode::Icp, _, Some(held)) => *held,
-        (TrackerMode::Icp, Some(coarsest), None) => FreeDirections::of_frame(
-            coarsest,
-            prediction,
-            (
-                &RigidF32::from_affine(&initial_world_from_camera.inverse()),
-                &config.gates,
-            ),
-            config.hold_below_eigenvalue,
-            &mut workspace.grid,
-        ),
+        (TrackerMode::Icp, Some(coarsest), None) => {
+            let coarse = FreeDirections::of_frame(
+                coarsest,
+                prediction,
+                (
+                    &RigidF32::from_affine(&initial_world_from_camera.inverse()),
+                    &config.gates,
+                ),
+                config.hold_below_eigenvalue,
+                &mut workspace.grid,
+            );
+            match pyramid.levels.first() {
+                Some(fine) if config.clean_depth => coarse.confirmed(
+                    (fine, coarsest),
+                    config.hold_below_eigenvalue,
+                    &workspace.grid,
+                ),
+                _ => coarse,
+            }
+        }
         _ => FreeDirections::default(),
     };
     let problem = Problem {
