@@ -20,6 +20,7 @@ pub mod noise;
 pub mod ordered_sum;
 pub mod pipeline;
 pub mod preprocess;
+pub mod random;
 pub mod se3;
 pub mod synthetic;
 pub mod track;

@@ -12,9 +12,9 @@ mod common;
 use common::synthetic_config;
 use glam::{DAffine3, Vec3};
 use std::collections::HashSet;
-use surfel_slam::dataset::ply::write_ply;
 use surfel_slam::eval::ate;
 use surfel_slam::fusion::{FusionConfig, Measured, Prediction};
+use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::preprocess::FramePyramid;
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
 use surfel_slam::{Intrinsics, Pipeline, SlamConfig, SurfelMap};
@@ -168,7 +168,7 @@ fn a_surface_seen_again_after_the_window_gets_a_second_copy_and_the_first_stays(
     .inactive_at(last);
     let inactive_count = count(s, |i| inactive.contains(&s.last_seen()[i]));
     assert!(inactive_count >= early_short);
-    let ply = write_ply(s);
+    let ply = write_surfel_ply(s);
     let header = String::from_utf8_lossy(&ply[..200.min(ply.len())]).to_string();
     assert!(
         header.contains(&format!("element vertex {}\n", s.live_len())),

@@ -8,7 +8,7 @@ use std::process::Command;
 use glam::Vec3;
 use ply_rs_bw::parser::Parser;
 use ply_rs_bw::ply::DefaultElement;
-use surfel_slam::dataset::ply::write_ply;
+use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::SurfelMap;
 
 fn sphere(centre: Vec3, radius: f32, n: usize) -> SurfelMap {
@@ -51,7 +51,7 @@ fn a_saved_map_becomes_mesh_files() {
     let map_path = dir.join("map.ply");
     std::fs::write(
         &map_path,
-        write_ply(&sphere(Vec3::new(0.0, 0.0, 1.0), 0.2, 30_000)),
+        write_surfel_ply(&sphere(Vec3::new(0.0, 0.0, 1.0), 0.2, 30_000)),
     )
     .expect("write map");
     let map = map_path.to_str().expect("utf8 path");

@@ -23,8 +23,8 @@ mod common;
 use common::{shared_dataset, synthetic_config};
 use std::io::Cursor;
 use std::path::PathBuf;
-use surfel_slam::dataset::ply::write_ply;
 use surfel_slam::dataset::{read_frame, Sequence};
+use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
 use surfel_slam::track::TrackerMode;
 use surfel_slam::{FrameReport, Intrinsics, Pipeline, PipelineError, RgbdFrame, SlamConfig};
@@ -508,7 +508,7 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
             model = Model::default();
             run_target = run_length(&mut rng);
         } else if roll < 94 {
-            let ply = write_ply(slam.map());
+            let ply = write_surfel_ply(slam.map());
             let text = String::from_utf8_lossy(&ply[..ply.len().min(600)]).to_string();
             let end = text.find("end_header\n").expect("PLY header") + "end_header\n".len();
             let live = slam.map().live_len();

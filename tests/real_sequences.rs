@@ -3,8 +3,8 @@
 mod common;
 
 use common::{lost_count, run_dataset, shared_dataset};
-use surfel_slam::dataset::ply::write_ply;
 use surfel_slam::eval::ate;
+use surfel_slam::mesh::write_surfel_ply;
 
 #[test]
 fn icl_nuim_office_kt0_is_sub_millimetre() {
@@ -25,7 +25,7 @@ fn icl_nuim_office_kt0_is_sub_millimetre() {
     let surfels = slam.map().len();
     assert!((100_000..3_000_000).contains(&surfels), "{surfels} surfels");
     assert!(slam.map().all_finite());
-    let ply = write_ply(slam.map());
+    let ply = write_surfel_ply(slam.map());
     assert!(ply.len() > surfels * 30);
 }
 

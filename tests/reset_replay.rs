@@ -10,9 +10,9 @@
 mod common;
 
 use common::shared_dataset;
-use surfel_slam::dataset::ply::write_ply;
 use surfel_slam::dataset::Sequence;
 use surfel_slam::eval::ate;
+use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::{Pipeline, SlamConfig};
 
 /// Pushes every frame of `sequence` as PNG bytes (the path the wasm
@@ -74,7 +74,7 @@ fn teddy_pushed_again_after_a_reset_gives_the_same_trajectory() {
         .fold(0.0, f64::max);
     assert!(worst <= 1e-3, "poses differ by up to {worst} m after reset");
     // The map holds what the PLY says.
-    let ply = write_ply(slam.map());
+    let ply = write_surfel_ply(slam.map());
     let header = String::from_utf8_lossy(&ply[..ply.len().min(400)]).to_string();
     assert!(
         header.contains(&format!("element vertex {second_surfels}\n")),

@@ -5,7 +5,7 @@
 // It is fed the same changed ranges and refresh windows the renderer gets, so
 // it holds exactly the map the page shows (merges reach it within a refresh
 // cycle). The PLY it writes has the layout of the library's
-// `dataset::ply::write_ply` (binary little-endian; x y z nx ny nz float,
+// `mesh::surfel_ply::write_surfel_ply` (binary little-endian; x y z nx ny nz float,
 // red green blue uchar, radius confidence float; absorbed surfels, whose
 // confidence is negative, left out) and the TUM text that of `format_tum`.
 // World frame = the first camera's, metres.

@@ -10,8 +10,9 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use std::path::PathBuf;
-use surfel_slam::dataset::{ply::write_ply, trajectory, DatasetSource, FrameEntry, Sequence};
+use surfel_slam::dataset::{trajectory, DatasetSource, FrameEntry, Sequence};
 use surfel_slam::eval::ate;
+use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::mesh::MeshConfig;
 use surfel_slam::{FrameReport, Pipeline, SlamConfig, Verdict};
 
@@ -289,7 +290,7 @@ fn write_outputs(args: &RunArgs, slam: &Pipeline, mesh_config: MeshConfig) -> Re
         }
     }
     if let Some(path) = &args.ply {
-        std::fs::write(path, write_ply(slam.map()))
+        std::fs::write(path, write_surfel_ply(slam.map()))
             .with_context(|| format!("writing {}", path.display()))?;
     }
     if let Some(path) = &args.mesh {

@@ -1,5 +1,5 @@
-//! RGB-D dataset loaders (TUM RGB-D, ICL-NUIM, Microsoft 7-Scenes), trajectory
-//! and PLY writers.
+//! RGB-D dataset loaders (TUM RGB-D, ICL-NUIM, Microsoft 7-Scenes) and the
+//! trajectory files (the surfel map's PLY file is in [`crate::mesh::surfel_ply`]).
 //!
 //! Parsing works in two pure steps on strings so that the browser (which only
 //! has a list of file names and can read text files on request) and the native
@@ -25,7 +25,6 @@ pub mod archive;
 pub mod icl_nuim;
 mod lines;
 mod open;
-pub mod ply;
 pub mod seven_scenes;
 pub mod trajectory;
 pub mod tum;

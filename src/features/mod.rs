@@ -1,7 +1,9 @@
 //! Sparse features for wide-baseline pose estimates: Shi-Tomasi corners
 //! with oriented binary descriptors (`orb.rs`), lifted to 3D with the
 //! frame's depth, matched by Hamming distance (ratio test and mutual
-//! check), and a rigid motion fitted by RANSAC ([`rigid`]).
+//! check), and a rigid motion fitted by RANSAC ([`rigid`]); the stage that
+//! holds two frames and estimates the motion between them on demand is
+//! [`SparseEstimator`] (`estimator.rs`).
 //!
 //! Dense tracking converges only from within a few centimetres of the
 //! answer; matching descriptors does not depend on where the search starts,
@@ -10,12 +12,14 @@
 //! integers) and 3D points are in the frame's camera frame (+x right, +y
 //! down, +z forward), metres.
 
+mod estimator;
 pub(crate) mod orb;
 pub mod rigid;
 
 use crate::flow::pyramid::GreyLevel;
 use crate::flow::{shi_tomasi_into, FlowConfig};
-use glam::{DAffine3, Vec2, Vec3};
+pub use estimator::{SparseEstimate, SparseEstimator};
+use glam::{Vec2, Vec3};
 use orb::{orientation, smooth_into, SteeredPattern, PATCH_RADIUS};
 use rayon::prelude::*;
 pub use rigid::{fit_rigid, ransac_rigid, RansacConfig, RigidFit};
@@ -134,6 +138,27 @@ impl PreparedFrame {
     }
 }
 
+/// Checks that `rgb` (RGB8) and `vertices` both hold `width x height` pixels.
+fn check_frame_size(
+    rgb: &[u8],
+    vertices: &[Vec3],
+    width: usize,
+    height: usize,
+) -> Result<(), FeatureError> {
+    let n = width * height;
+    for (got, expected) in [(rgb.len(), 3 * n), (vertices.len(), n)] {
+        if got != expected {
+            return Err(FeatureError::SizeMismatch {
+                got,
+                expected,
+                width,
+                height,
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Detects and describes corners with depth; buffers reused between calls.
 #[derive(Debug, Clone)]
 pub struct FeatureExtractor {
@@ -207,17 +232,7 @@ impl FeatureExtractor {
         height: usize,
         out: &mut PreparedFrame,
     ) -> Result<(), FeatureError> {
-        let n = width * height;
-        for (got, expected) in [(rgb.len(), 3 * n), (vertices.len(), n)] {
-            if got != expected {
-                return Err(FeatureError::SizeMismatch {
-                    got,
-                    expected,
-                    width,
-                    height,
-                });
-            }
-        }
+        check_frame_size(rgb, vertices, width, height)?;
         let scale = 1usize << self.config.level;
         let (w, h) = (width / scale, height / scale);
         out.grey.width = w;
@@ -371,219 +386,4 @@ pub fn match_features(
         (j < b.len() && best <= config.max_distance && distinct && backward[j] == i)
             .then_some((i, j))
     }));
-}
-
-/// A rigid motion between two frames from their matched features.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SparseEstimate {
-    /// Maps points of the current frame's camera into the reference frame's
-    /// camera (`reference_from_current`), metres.
-    pub reference_from_current: DAffine3,
-    /// Matches consistent with it.
-    pub inliers: usize,
-    /// Matches found.
-    pub matches: usize,
-    /// RMS 3D distance of the inliers, metres.
-    pub rms_m: f64,
-}
-
-/// A frame held by [`SparseEstimator`]: colour and points as given (a plain
-/// copy, cheap), reduced ([`FeatureExtractor::prepare`]) and its corners
-/// detected only when an estimate asks for its features.
-#[derive(Debug, Clone, Default)]
-struct HeldFrame {
-    /// RGB8, `width x height`.
-    rgb: Vec<u8>,
-    /// Camera-frame points, metres, `ZERO` where no depth.
-    vertices: Vec<Vec3>,
-    width: usize,
-    height: usize,
-    /// A frame is held and its feature level is not empty.
-    held: bool,
-    prepared: PreparedFrame,
-    features: Vec<Feature>,
-    /// `features` are this frame's (prepared and detected).
-    detected: bool,
-}
-
-impl HeldFrame {
-    /// Keeps a copy of a frame (sizes checked as [`FeatureExtractor::prepare`] does).
-    fn keep(
-        &mut self,
-        rgb: &[u8],
-        vertices: &[Vec3],
-        (width, height): (usize, usize),
-        level: usize,
-    ) -> Result<(), FeatureError> {
-        self.held = false;
-        self.detected = false;
-        self.features.clear();
-        let n = width * height;
-        for (got, expected) in [(rgb.len(), 3 * n), (vertices.len(), n)] {
-            if got != expected {
-                return Err(FeatureError::SizeMismatch {
-                    got,
-                    expected,
-                    width,
-                    height,
-                });
-            }
-        }
-        self.rgb.clear();
-        self.rgb.extend_from_slice(rgb);
-        self.vertices.clear();
-        self.vertices.extend_from_slice(vertices);
-        (self.width, self.height) = (width, height);
-        // A frame smaller than one block at the feature level has nothing
-        // to match (an empty prepared frame counted as none before).
-        self.held = (width >> level) * (height >> level) > 0;
-        Ok(())
-    }
-
-    /// Prepares the frame and detects its corners, if a frame is held and
-    /// that was not done yet.
-    fn detect_with(&mut self, extractor: &mut FeatureExtractor) {
-        if !self.held || self.detected {
-            return;
-        }
-        let (w, h) = (self.width, self.height);
-        // The sizes were checked by `keep`.
-        if extractor
-            .prepare(&self.rgb, &self.vertices, w, h, &mut self.prepared)
-            .is_ok()
-        {
-            extractor.detect(&self.prepared, &mut self.features);
-        }
-        self.detected = true;
-    }
-
-    /// The features detected so far (none when no frame is held).
-    fn features(&self) -> &[Feature] {
-        if self.held {
-            &self.features
-        } else {
-            &[]
-        }
-    }
-
-    fn clear(&mut self) {
-        self.held = false;
-        self.detected = false;
-        self.features.clear();
-    }
-}
-
-/// Estimates the motion between a reference frame and later frames from
-/// matched features. Holds the reference and the current frame as given
-/// (copies) and reduces, detects and describes either only when an
-/// estimate asks for it, at most once per frame: most frames are never
-/// asked about (dense tracking alone decides them), and the reduction
-/// costs about 1.9 ms per frame at 640x480 where a copy costs a fraction
-/// of that (`docs/performance.md#sparse-features`).
-#[derive(Debug, Clone)]
-pub struct SparseEstimator {
-    extractor: FeatureExtractor,
-    reference: HeldFrame,
-    current: HeldFrame,
-    matches: Vec<(usize, usize)>,
-    a: Vec<Vec3>,
-    b: Vec<Vec3>,
-    inlier: Vec<bool>,
-}
-
-impl SparseEstimator {
-    /// An estimator with `config`.
-    pub fn new(config: FeatureConfig) -> Result<Self, FeatureError> {
-        Ok(Self {
-            extractor: FeatureExtractor::new(config)?,
-            reference: HeldFrame::default(),
-            current: HeldFrame::default(),
-            matches: Vec::new(),
-            a: Vec::new(),
-            b: Vec::new(),
-            inlier: Vec::new(),
-        })
-    }
-
-    /// Keeps a copy of a frame (see [`FeatureExtractor::extract`] for the
-    /// arguments) as the current frame; it is reduced and its corners
-    /// detected only when an estimate asks for them. On error no current
-    /// frame is held.
-    pub fn keep_frame(
-        &mut self,
-        rgb: &[u8],
-        vertices: &[Vec3],
-        width: usize,
-        height: usize,
-    ) -> Result<(), FeatureError> {
-        let level = self.extractor.config().level;
-        self.current.keep(rgb, vertices, (width, height), level)
-    }
-
-    /// [`Self::keep_frame`] and detect at once; returns the number of features.
-    pub fn extract(
-        &mut self,
-        rgb: &[u8],
-        vertices: &[Vec3],
-        width: usize,
-        height: usize,
-    ) -> Result<usize, FeatureError> {
-        self.keep_frame(rgb, vertices, width, height)?;
-        Ok(self.current().len())
-    }
-
-    /// The current frame becomes the reference (its features, if detected,
-    /// go with it); no current frame is held until the next
-    /// [`Self::keep_frame`].
-    pub fn current_becomes_reference(&mut self) {
-        std::mem::swap(&mut self.reference, &mut self.current);
-        self.current.clear();
-    }
-
-    /// Forgets both frames.
-    pub fn clear(&mut self) {
-        self.reference.clear();
-        self.current.clear();
-    }
-
-    /// Whether a reference frame is held.
-    #[must_use]
-    pub fn has_reference(&self) -> bool {
-        self.reference.held
-    }
-
-    /// Features of the current frame (detected now if not yet).
-    pub fn current(&mut self) -> &[Feature] {
-        self.current.detect_with(&mut self.extractor);
-        self.current.features()
-    }
-
-    /// Features of the reference frame (detected now if not yet).
-    pub fn reference(&mut self) -> &[Feature] {
-        self.reference.detect_with(&mut self.extractor);
-        self.reference.features()
-    }
-
-    /// The motion from the current frame to the reference, or `None` when
-    /// too few matches agree on one.
-    pub fn estimate(&mut self) -> Option<SparseEstimate> {
-        let config = *self.extractor.config();
-        self.current.detect_with(&mut self.extractor);
-        self.reference.detect_with(&mut self.extractor);
-        let (current, reference) = (self.current.features(), self.reference.features());
-        match_features(reference, current, &config, &mut self.matches);
-        self.a.clear();
-        self.b.clear();
-        for &(i, j) in &self.matches {
-            self.a.push(reference[i].point_in_camera);
-            self.b.push(current[j].point_in_camera);
-        }
-        let fit = ransac_rigid(&self.a, &self.b, &config.ransac, &mut self.inlier)?;
-        Some(SparseEstimate {
-            reference_from_current: fit.a_from_b,
-            inliers: fit.inliers,
-            matches: self.matches.len(),
-            rms_m: fit.rms_m,
-        })
-    }
 }

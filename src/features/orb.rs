@@ -5,6 +5,7 @@
 //! smoothed image: single pixels are too noisy to compare.
 
 use super::Descriptor;
+use crate::random::SplitMix;
 use glam::Vec2;
 
 /// Radius of the circular patch around a corner, pixels of the level the
@@ -17,32 +18,6 @@ const PAIR_RADIUS: f32 = 13.0;
 const ANGLE_BINS: usize = 30;
 /// Comparisons per descriptor.
 pub const BITS: usize = 256;
-
-/// Small deterministic generator (splitmix64): the pattern and the RANSAC
-/// samples must be the same on every platform and run.
-#[derive(Debug, Clone)]
-pub struct SplitMix(pub u64);
-
-impl SplitMix {
-    /// Next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    pub fn next_f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-
-    /// Uniform in `0..n` (`n > 0`).
-    pub fn below(&mut self, n: usize) -> usize {
-        (((self.next_u64() >> 32) * n as u64) >> 32) as usize
-    }
-}
 
 /// The comparison pairs `(ax, ay, bx, by)`, pixel offsets, for each orientation bin.
 #[derive(Debug, Clone)]
@@ -61,7 +36,7 @@ impl SteeredPattern {
     /// tests) from a fixed seed, rotated to every bin.
     #[must_use]
     pub fn new() -> Self {
-        let mut rng = SplitMix(0x0b1e_f00d);
+        let mut rng = SplitMix::new(0x0b1e_f00d);
         let sigma = (2 * PATCH_RADIUS + 1) as f32 / 5.0;
         let mut gaussian_point = || loop {
             // Box-Muller.

@@ -2,7 +2,7 @@
 //! Umeyama, without scale) and RANSAC over 3-point samples, refined on the
 //! inliers.
 
-use super::orb::SplitMix;
+use crate::random::SplitMix;
 use glam::{DAffine3, DVec3, Vec3};
 use nalgebra::Matrix3;
 
@@ -119,7 +119,7 @@ pub fn ransac_rigid(
             })
             .count()
     };
-    let mut rng = SplitMix(config.seed);
+    let mut rng = SplitMix::new(config.seed);
     let mut best: Option<(usize, DAffine3)> = None;
     let mut needed = config.max_iterations;
     let mut iteration = 0;

@@ -102,20 +102,20 @@ fn gather<T: Copy>(values: &mut [T], source: impl Fn(usize) -> usize, scratch: &
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SurfelMap {
     /// Centre of each surfel, world frame, metres.
-    pub(crate) positions: Vec<Vec3>,
+    pub(super) positions: Vec<Vec3>,
     /// Unit normal of each surfel, world frame, pointing towards the cameras that saw it.
-    pub(crate) normals: Vec<Vec3>,
+    pub(super) normals: Vec<Vec3>,
     /// Colour, RGBA8 (A = 255).
-    pub(crate) colours: Vec<[u8; 4]>,
+    pub(super) colours: Vec<[u8; 4]>,
     /// Disk radius, metres.
-    pub(crate) radii: Vec<f32>,
+    pub(super) radii: Vec<f32>,
     /// Accumulated confidence (sum of the radial weights of merged measurements).
-    pub(crate) confidences: Vec<f32>,
+    pub(super) confidences: Vec<f32>,
     /// Frame index at which the surfel was created.
-    pub(crate) first_seen: Vec<u32>,
+    pub(super) first_seen: Vec<u32>,
     /// Frame index at which the surfel was last updated (created, merged
     /// with a measurement, or won its pixel as a settled surfel).
-    pub(crate) last_seen: Vec<u32>,
+    pub(super) last_seen: Vec<u32>,
     /// Lowest index changed since the last `take_changed_range`.
     change_lo: usize,
     /// One past the highest index changed since the last `take_changed_range`.
@@ -468,6 +468,26 @@ impl SurfelMap {
         );
         gather(&mut self.first_seen[r.clone()], source, &mut scratch.frames);
         gather(&mut self.last_seen[r], source, &mut scratch.frames);
+    }
+
+    /// Moves every surfel by `warp`, which receives the centres and normals
+    /// (world frame, metres; to change in place) and each surfel's
+    /// `last_seen` frame (a deformation graph moves a surfel with the nodes
+    /// of its time). Afterwards, whether the warp succeeded or not, the
+    /// whole map counts as changed (a renderer re-uploads it) and every
+    /// block box is rebuilt. Indices do not change, so the spatial order's
+    /// runs still tile the same surfels; a smooth warp keeps them compact.
+    pub fn warp<E>(
+        &mut self,
+        warp: impl FnOnce(&mut [Vec3], &mut [Vec3], &[u32]) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let result = warp(&mut self.positions, &mut self.normals, &self.last_seen);
+        if let Some(last) = self.len().checked_sub(1) {
+            self.mark_changed(0);
+            self.mark_changed(last);
+        }
+        self.rebuild_bounds_from(0);
+        result
     }
 
     /// Recomputes the chunk boxes from the chunk holding surfel `first` on.

@@ -495,19 +495,12 @@ impl LoopCloser {
         (pose, corrected): (&mut DAffine3, DAffine3),
     ) -> Result<DeformReport, DeformError> {
         let mut graph = DeformationGraph::from_samples(
-            &map.positions,
-            &map.last_seen,
+            map.positions(),
+            map.last_seen(),
             self.config.deform.clone(),
         )?;
         let report = graph.optimise(&self.constraints)?;
-        graph.apply_to_points(&mut map.positions, &mut map.normals, &map.last_seen)?;
-        // Every surfel may have moved: the renderer re-uploads the whole
-        // map, and the blocks' boxes are recomputed.
-        if let Some(last) = map.len().checked_sub(1) {
-            map.mark_changed(0);
-            map.mark_changed(last);
-        }
-        map.rebuild_bounds_from(0);
+        map.warp(|positions, normals, times| graph.apply_to_points(positions, normals, times))?;
         for (i, (_, p)) in trajectory.iter_mut().enumerate() {
             *p = graph.apply_to_pose(p, u32::try_from(i).unwrap_or(u32::MAX));
         }

@@ -18,7 +18,7 @@
 //! registration photometrically. Poses are `world_from_camera` (metres);
 //! times are frame indices.
 
-use crate::features::orb::SplitMix;
+use crate::random::SplitMix;
 use glam::DAffine3;
 use rayon::prelude::*;
 use thiserror::Error;
@@ -180,7 +180,7 @@ impl FernDatabase {
                 "add_above and min_good_fraction must be in 0..=1",
             ));
         }
-        let mut rng = SplitMix(config.seed);
+        let mut rng = SplitMix::new(config.seed);
         let pixels = config.width * config.height;
         let ferns = (0..config.ferns)
             .map(|_| Fern {

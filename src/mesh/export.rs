@@ -5,6 +5,7 @@
 use std::fmt::Write as _;
 
 use super::glb::write_glb_mesh;
+use super::ply_header::write_ply_header;
 use super::TriangleMesh;
 
 /// A mesh file format.
@@ -63,24 +64,11 @@ pub fn write_mesh(mesh: &TriangleMesh, format: MeshFormat) -> Vec<u8> {
 #[must_use]
 pub fn write_ply_mesh(mesh: &TriangleMesh) -> Vec<u8> {
     let nv = mesh.positions.len();
-    let header = format!(
-        "ply\n\
-         format binary_little_endian 1.0\n\
-         comment surfel-slam mesh, world frame, metres\n\
-         element vertex {nv}\n\
-         property float x\n\
-         property float y\n\
-         property float z\n\
-         property float nx\n\
-         property float ny\n\
-         property float nz\n\
-         property uchar red\n\
-         property uchar green\n\
-         property uchar blue\n\
-         element face {}\n\
-         property list uchar int vertex_indices\n\
-         end_header\n",
-        mesh.triangles.len()
+    let header = write_ply_header(
+        "surfel-slam mesh, world frame, metres",
+        nv,
+        &[],
+        Some(mesh.triangles.len()),
     );
     let mut out = Vec::with_capacity(header.len() + nv * 27 + mesh.triangles.len() * 13);
     out.extend_from_slice(header.as_bytes());

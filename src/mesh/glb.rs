@@ -51,21 +51,21 @@ pub fn write_glb_mesh(mesh: &TriangleMesh) -> Vec<u8> {
 #[must_use]
 pub fn write_glb_points(map: &SurfelMap, min_confidence: f32) -> Vec<u8> {
     let n = map
-        .positions
+        .positions()
         .len()
-        .min(map.normals.len())
-        .min(map.colours.len())
-        .min(map.confidences.len());
+        .min(map.normals().len())
+        .min(map.colours().len())
+        .min(map.confidences().len());
     let (mut positions, mut normals, mut colours) = (Vec::new(), Vec::new(), Vec::new());
     for i in 0..n {
-        let (p, c) = (map.positions[i], map.confidences[i]);
-        let Some(normal) = map.normals[i].try_normalize() else {
+        let (p, c) = (map.positions()[i], map.confidences()[i]);
+        let Some(normal) = map.normals()[i].try_normalize() else {
             continue;
         };
         if c >= min_confidence && p.is_finite() {
             positions.push(p);
             normals.push(normal);
-            colours.push(map.colours[i]);
+            colours.push(map.colours()[i]);
         }
     }
     write_glb(&Primitive {

@@ -77,14 +77,14 @@ pub(super) struct Grid {
 
 /// A surfel fit for meshing: finite, unit normal, sane radius.
 fn usable(map: &SurfelMap, i: usize, config: &MeshConfig) -> bool {
-    let c = map.confidences[i];
-    let r = map.radii[i];
-    let n = map.normals[i];
+    let c = map.confidences()[i];
+    let r = map.radii()[i];
+    let n = map.normals()[i];
     c >= config.min_confidence
         && c.is_finite()
         && r.is_finite()
         && r > 0.0
-        && map.positions[i].is_finite()
+        && map.positions()[i].is_finite()
         && n.is_finite()
         && (n.length_squared() - 1.0).abs() < 0.1
 }
@@ -144,7 +144,7 @@ impl Grid {
             if !usable(map, i, config) {
                 continue;
             }
-            let b = (map.positions[i] / block_m).floor();
+            let b = (map.positions()[i] / block_m).floor();
             if b.abs().max_element() >= limit {
                 continue;
             }
@@ -177,7 +177,7 @@ impl Grid {
         for &(start, end) in self.buckets.values() {
             let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
             for &(_, i) in &self.sorted[start as usize..end as usize] {
-                let p = map.positions[i as usize];
+                let p = map.positions()[i as usize];
                 lo = lo.min(p);
                 hi = hi.max(p);
             }
@@ -322,7 +322,7 @@ impl Splat<'_> {
                     };
                     for &(_, i) in &self.sorted[start as usize..end as usize] {
                         let i = i as usize;
-                        let p = self.map.positions[i] - origin_m;
+                        let p = self.map.positions()[i] - origin_m;
                         let lo = ((p - self.reach) * inv_voxel)
                             .ceil()
                             .as_ivec3()
@@ -334,13 +334,15 @@ impl Splat<'_> {
                         if lo.cmpgt(hi).any() {
                             continue;
                         }
-                        let n = self.map.normals[i];
+                        let n = self.map.normals()[i];
                         // A wide disk (far or oblique view) reaches further
                         // along the surface.
-                        let rt = self.tangential_reach.max(self.map.radii[i].min(self.reach));
+                        let rt = self
+                            .tangential_reach
+                            .max(self.map.radii()[i].min(self.reach));
                         let inv_tangential2 = 1.0 / (rt * rt);
-                        let c = (self.map.confidences[i] / FULL_WEIGHT_CONFIDENCE).min(1.0);
-                        let rgb = self.map.colours[i];
+                        let c = (self.map.confidences()[i] / FULL_WEIGHT_CONFIDENCE).min(1.0);
+                        let rgb = self.map.colours()[i];
                         let rgb = [f32::from(rgb[0]), f32::from(rgb[1]), f32::from(rgb[2])];
                         for z in lo.z..=hi.z {
                             for y in lo.y..=hi.y {

@@ -1,8 +1,14 @@
-//! Reads a surfel map back from binary little-endian PLY: the files
-//! `dataset::ply::write_ply` writes, and point clouds with normals from
-//! other tools (Open3D, CloudCompare).
+//! The surfel map as a PLY file, readable by MeshLab, CloudCompare, Open3D,
+//! and read back from the files written here and from point clouds with
+//! normals of other tools (Open3D, CloudCompare).
 //!
-//! The first element must be `vertex`, with scalar properties; `x y z` and
+//! Written: `binary_little_endian 1.0`, one `vertex` element with the
+//! standard property names `x y z` (float, world frame, metres), `nx ny nz`
+//! (float, unit normal, world frame), `red green blue` (uchar), and two
+//! extra float properties `radius` (metres) and `confidence` (accumulated
+//! weight).
+//!
+//! Read: the first element must be `vertex`, with scalar properties; `x y z` and
 //! `nx ny nz` are required (world frame, metres; unit normal), `red green
 //! blue` (uchar), `radius` (metres) and `confidence` are optional. Points
 //! without a confidence count as fully confident; without a radius they get
@@ -12,6 +18,7 @@
 use glam::Vec3;
 use thiserror::Error;
 
+use super::ply_header::write_ply_header;
 use crate::fusion::SurfelMap;
 
 /// Radius given to points of a file without a `radius` property, metres.
@@ -225,30 +232,145 @@ pub fn read_surfel_ply(bytes: &[u8]) -> Result<SurfelMap, SurfelPlyError> {
     Ok(map)
 }
 
+/// Bytes per written vertex: 6 floats, 3 uchars, 2 floats.
+const VERTEX_BYTES: usize = 6 * 4 + 3 + 2 * 4;
+
+/// Writes the map as a binary little-endian PLY file, without the surfels
+/// absorbed into others (negative confidence, awaiting removal). If the
+/// map's arrays have different lengths (a corrupt map), only the surfels
+/// present in every array are written.
+#[must_use]
+pub fn write_surfel_ply(map: &SurfelMap) -> Vec<u8> {
+    let n = map.common_len();
+    let (positions, normals, colours) = (map.positions(), map.normals(), map.colours());
+    let (radii, confidences) = (map.radii(), map.confidences());
+    let kept = || (0..n).filter(|&i| confidences[i] >= 0.0);
+    let count = kept().count();
+    let header = write_ply_header(
+        "surfel-slam surfel map, world frame, metres",
+        count,
+        &["radius", "confidence"],
+        None,
+    );
+    let mut out = Vec::with_capacity(header.len() + count * VERTEX_BYTES);
+    out.extend_from_slice(header.as_bytes());
+    for i in kept() {
+        let (p, nrm) = (positions[i], normals[i]);
+        for v in [p.x, p.y, p.z, nrm.x, nrm.y, nrm.z] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&colours[i][..3]);
+        out.extend_from_slice(&radii[i].to_le_bytes());
+        out.extend_from_slice(&confidences[i].to_le_bytes());
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::ply::write_ply;
+    use crate::fusion::Surfel;
     use crate::mesh::tests::sphere_map;
+    use ply_rs_bw::parser::Parser;
+    use ply_rs_bw::ply::{DefaultElement, Property};
+
+    fn float(e: &DefaultElement, key: &str) -> f32 {
+        match e.get(key) {
+            Some(Property::Float(v)) => *v,
+            other => panic!("{key}: {other:?}"),
+        }
+    }
+
+    fn uchar(e: &DefaultElement, key: &str) -> u8 {
+        match e.get(key) {
+            Some(Property::UChar(v)) => *v,
+            other => panic!("{key}: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn round_trip_through_an_independent_reader() {
+        let mut map = SurfelMap::default();
+        map.push(
+            Vec3::new(1.0, -2.5, 3.25),
+            Vec3::Z,
+            [10, 200, 30, 255],
+            0.004,
+            1.5,
+            0,
+        );
+        map.push(
+            Vec3::new(-0.1, 0.2, 0.7),
+            Vec3::new(0.6, 0.0, -0.8),
+            [255, 0, 7, 255],
+            0.01,
+            12.0,
+            3,
+        );
+        let bytes = write_surfel_ply(&map);
+        let parser = Parser::<DefaultElement>::new();
+        let ply = parser.read_ply(&mut bytes.as_slice()).expect("valid PLY");
+        let vertices = &ply.payload["vertex"];
+        assert_eq!(vertices.len(), 2);
+        for (i, v) in vertices.iter().enumerate() {
+            let p = map.positions()[i];
+            let n = map.normals()[i];
+            assert_eq!(
+                [float(v, "x"), float(v, "y"), float(v, "z")],
+                [p.x, p.y, p.z]
+            );
+            assert_eq!(
+                [float(v, "nx"), float(v, "ny"), float(v, "nz")],
+                [n.x, n.y, n.z]
+            );
+            let c = map.colours()[i];
+            assert_eq!(
+                [uchar(v, "red"), uchar(v, "green"), uchar(v, "blue")],
+                [c[0], c[1], c[2]]
+            );
+            assert_eq!(float(v, "radius"), map.radii()[i]);
+            assert_eq!(float(v, "confidence"), map.confidences()[i]);
+        }
+        // An absorbed surfel (awaiting removal) is not written.
+        let mut with_absorbed = map.clone();
+        with_absorbed.push(Vec3::ONE, Vec3::Z, [1, 2, 3, 255], 0.01, 2.0, 4);
+        with_absorbed.absorb(0);
+        let bytes = write_surfel_ply(&with_absorbed);
+        let ply = parser.read_ply(&mut bytes.as_slice()).expect("valid PLY");
+        let positions: Vec<f32> = ply.payload["vertex"]
+            .iter()
+            .map(|v| float(v, "x"))
+            .collect();
+        assert_eq!(positions, [-0.1, 1.0]);
+        let empty = write_surfel_ply(&SurfelMap::default());
+        let ply = parser
+            .read_ply(&mut empty.as_slice())
+            .expect("valid empty PLY");
+        assert_eq!(ply.payload.get("vertex").map_or(0, Vec::len), 0);
+    }
 
     #[test]
     fn reads_back_what_the_surfel_writer_writes() {
         let mut map = sphere_map(Vec3::new(0.1, 0.2, 1.0), 0.1, 0.02);
-        map.confidences[3] = 2.5;
-        let back = read_surfel_ply(&write_ply(&map)).expect("reads");
+        let third = Surfel {
+            confidence: 2.5,
+            ..map.surfel(3)
+        };
+        map.set_surfel(3, &third);
+        let back = read_surfel_ply(&write_surfel_ply(&map)).expect("reads");
         assert_eq!(back.len(), map.len());
         for i in 0..map.len() {
-            assert_eq!(back.positions[i], map.positions[i]);
-            assert!((back.normals[i] - map.normals[i]).length() < 1e-6);
-            assert_eq!(back.colours[i], map.colours[i]);
-            assert_eq!(back.radii[i], map.radii[i]);
-            assert_eq!(back.confidences[i], map.confidences[i]);
+            assert_eq!(back.positions()[i], map.positions()[i]);
+            assert!((back.normals()[i] - map.normals()[i]).length() < 1e-6);
+            assert_eq!(back.colours()[i], map.colours()[i]);
+            assert_eq!(back.radii()[i], map.radii()[i]);
+            assert_eq!(back.confidences()[i], map.confidences()[i]);
         }
     }
 
     #[test]
     fn bad_files_are_errors() {
-        let good = write_ply(&sphere_map(Vec3::Z, 0.1, 0.02));
+        let good = write_surfel_ply(&sphere_map(Vec3::Z, 0.1, 0.02));
         assert!(matches!(
             read_surfel_ply(b""),
             Err(SurfelPlyError::Header(_))
@@ -290,10 +412,10 @@ mod tests {
         }
         let m = read_surfel_ply(&minimal).expect("reads");
         assert_eq!(m.len(), 1, "the NaN point is dropped");
-        assert_eq!(m.positions[0], Vec3::new(1.0, 2.0, 3.0));
-        assert_eq!(m.normals[0], Vec3::Z);
+        assert_eq!(m.positions()[0], Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(m.normals()[0], Vec3::Z);
         assert_eq!(
-            (m.radii[0], m.confidences[0]),
+            (m.radii()[0], m.confidences()[0]),
             (DEFAULT_RADIUS_M, DEFAULT_CONFIDENCE)
         );
     }

@@ -23,7 +23,7 @@
 //!
 //! Rendering is per pixel, through the pixel centre, nearest hit over all
 //! boxes (slab method), parallel over rows with rayon. Noise is drawn from a
-//! SplitMix64 stream seeded per row from `seed`, so a frame depends only on
+//! [`crate::random::SplitMix`] stream seeded per row from `seed`, so a frame depends only on
 //! its arguments (not on the thread count).
 
 mod loop_path;

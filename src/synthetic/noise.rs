@@ -1,9 +1,10 @@
 //! Sensor noise: the [`NoiseModel`] parameters, the [`StructuredLight`]
-//! depth simulation, the deterministic SplitMix64
-//! stream (uniform and gaussian draws) and depth-edge detection.
+//! depth simulation, uniform and gaussian draws from the crate's seeded
+//! generator ([`crate::random::SplitMix`]) and depth-edge detection.
 
 use super::texture::sin_turns;
 use crate::camera::Intrinsics;
+use crate::random::SplitMix;
 use rayon::prelude::*;
 
 /// Sensor noise applied by [`render`](fn@super::render).
@@ -106,7 +107,7 @@ impl StructuredLight {
         let sigma_d = sanitise(self.axial_per_m2) * fb;
         let quantum = sanitise(self.quantum_px);
         out.par_chunks_mut(w).enumerate().for_each(|(v, row)| {
-            let mut rng = SplitMix64::new(row_seed(seed, v, 0x57A0_C7ED));
+            let mut rng = NoiseStream::new(row_seed(seed, v, 0x57A0_C7ED));
             for (u, z_out) in row.iter_mut().enumerate() {
                 let (du, dv, gd) = (rng.gaussian(), rng.gaussian(), rng.gaussian());
                 let su = (u as f32 + lateral * du).round();
@@ -151,36 +152,28 @@ pub(super) fn sanitise(x: f32) -> f32 {
 }
 
 pub(super) fn row_seed(seed: u64, row: usize, stream: u64) -> u64 {
-    let mut s = SplitMix64::new(seed ^ stream.wrapping_mul(0xA076_1D64_78BD_642F));
+    let mut s = SplitMix::new(seed ^ stream.wrapping_mul(0xA076_1D64_78BD_642F));
     s.next_u64() ^ (row as u64).wrapping_mul(0xE703_7ED1_A0B4_28DB)
 }
 
-/// SplitMix64 (Steele, Lea, Flood 2014): tiny, fast, good enough for noise.
+/// Uniform and gaussian draws from one [`SplitMix`] stream.
 #[derive(Debug, Clone)]
-pub(super) struct SplitMix64 {
-    state: u64,
+pub(super) struct NoiseStream {
+    rng: SplitMix,
     spare: Option<f32>,
 }
 
-impl SplitMix64 {
+impl NoiseStream {
     pub(super) fn new(seed: u64) -> Self {
         Self {
-            state: seed,
+            rng: SplitMix::new(seed),
             spare: None,
         }
     }
 
-    pub(super) fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
     /// Uniform in [0, 1).
     pub(super) fn next_f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+        self.rng.next_f32()
     }
 
     /// Standard normal (Box-Muller; the second value of each pair is kept for the next call).
@@ -188,7 +181,7 @@ impl SplitMix64 {
         if let Some(g) = self.spare.take() {
             return g;
         }
-        let bits = self.next_u64();
+        let bits = self.rng.next_u64();
         // u1 in (0, 1] so that ln(u1) is finite.
         let u1 = ((bits >> 40) as f32 + 1.0) * (1.0 / (1u64 << 24) as f32);
         let u2 = (bits & 0xFF_FFFF) as f32 * (1.0 / (1u64 << 24) as f32);

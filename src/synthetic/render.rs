@@ -8,7 +8,7 @@ use image::{DynamicImage, ImageBuffer, ImageFormat, Luma, Rgb};
 use rayon::prelude::*;
 use thiserror::Error;
 
-use super::noise::{is_depth_edge, row_seed, sanitise, NoiseModel, SplitMix64};
+use super::noise::{is_depth_edge, row_seed, sanitise, NoiseModel, NoiseStream};
 use super::raycast::Prepared;
 use super::scene::Scene;
 use crate::camera::Intrinsics;
@@ -171,7 +171,7 @@ pub fn render_into(
         .zip(frame.rgb.par_chunks_mut(3 * w))
         .enumerate()
         .for_each(|(v, (depth_row, rgb_row))| {
-            let mut rng = SplitMix64::new(row_seed(seed, v, 0x00C0_10E5));
+            let mut rng = NoiseStream::new(row_seed(seed, v, 0x00C0_10E5));
             let y = (v as f32 - k.cy) / k.fy;
             let row_dir = rot * Vec3::new(0.0, y, 1.0);
             for (u, (depth, rgb)) in depth_row
@@ -208,8 +208,8 @@ pub fn render_into(
         .for_each(|(v, raw_row)| {
             // One stream per noise source, one draw per pixel: turning one
             // source on or off does not reshuffle the others.
-            let mut hole_rng = SplitMix64::new(row_seed(seed, v, 0x0401_E500));
-            let mut depth_rng = SplitMix64::new(row_seed(seed, v, 0xDE97_4000));
+            let mut hole_rng = NoiseStream::new(row_seed(seed, v, 0x0401_E500));
+            let mut depth_rng = NoiseStream::new(row_seed(seed, v, 0xDE97_4000));
             let row = &depth_m[v * w..(v + 1) * w];
             for (u, raw) in raw_row.iter_mut().enumerate() {
                 let z = row[u];

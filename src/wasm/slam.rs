@@ -11,11 +11,9 @@ use wasm_bindgen::prelude::*;
 
 use super::config::slam_config_from_js;
 use super::convert::{ate_to_js, max_dt_from_js, report_to_js};
-use crate::dataset::{
-    ply::write_ply,
-    trajectory::{format_tum, parse_tum},
-};
+use crate::dataset::trajectory::{format_tum, parse_tum};
 use crate::eval;
+use crate::mesh::write_surfel_ply;
 use crate::pipeline::Pipeline;
 
 /// Dense RGB-D SLAM: camera trajectory and surfel map from RGB-D frames.
@@ -261,7 +259,7 @@ impl Slam {
     #[wasm_bindgen(js_name = exportPly)]
     #[must_use]
     pub fn export_ply(&self) -> Vec<u8> {
-        write_ply(self.pipeline.map())
+        write_surfel_ply(self.pipeline.map())
     }
 
     /// Forgets the map and the trajectory; keeps the configuration. Pushing

@@ -19,6 +19,8 @@ mod optimise;
 
 use glam::{DMat3, DVec3, Vec3};
 
+use crate::random::SplitMix;
+
 /// Most nodes a point may be influenced by (the fixed size of the per-point
 /// neighbour arrays).
 pub const MAX_INFLUENCE: usize = 8;
@@ -572,11 +574,8 @@ impl DeformationGraph {
     }
 }
 
-/// A fixed pseudo-random number in `[0, 1)` for `j` (splitmix64).
+/// A fixed pseudo-random number in `[0, 1)` for `j`: the first draw of
+/// the stream seeded with `j`.
 fn jitter(j: u64) -> f64 {
-    let mut z = j.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^= z >> 31;
-    (z >> 11) as f64 / (1u64 << 53) as f64
+    SplitMix::new(j).next_f64()
 }

@@ -1,0 +1,39 @@
+//! The header of the binary PLY files written here: the surfel map
+//! ([`super::surfel_ply`]) and the triangle mesh ([`super::export`]).
+
+/// The header of a `binary_little_endian 1.0` PLY file whose `vertex`
+/// element has `x y z nx ny nz` (float, world frame, metres; unit normal)
+/// and `red green blue` (uchar), then the float properties `extra_floats`;
+/// with `faces`, a `face` element of that many `uchar int` index lists.
+pub(super) fn write_ply_header(
+    comment: &str,
+    vertices: usize,
+    extra_floats: &[&str],
+    faces: Option<usize>,
+) -> String {
+    let mut header = format!(
+        "ply\n\
+         format binary_little_endian 1.0\n\
+         comment {comment}\n\
+         element vertex {vertices}\n\
+         property float x\n\
+         property float y\n\
+         property float z\n\
+         property float nx\n\
+         property float ny\n\
+         property float nz\n\
+         property uchar red\n\
+         property uchar green\n\
+         property uchar blue\n"
+    );
+    for name in extra_floats {
+        header.push_str(&format!("property float {name}\n"));
+    }
+    if let Some(faces) = faces {
+        header.push_str(&format!(
+            "element face {faces}\nproperty list uchar int vertex_indices\n"
+        ));
+    }
+    header.push_str("end_header\n");
+    header
+}
