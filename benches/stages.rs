@@ -3,6 +3,8 @@
 //! realistic size (the model after the first `MAP_FRAMES` frames).
 //!
 //! `cargo bench --bench stages` (add `-- <name>` to run one group).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+// a test, bench or example fails loudly
 
 // `criterion_group!` generates an undocumented public function.
 #![allow(missing_docs)]

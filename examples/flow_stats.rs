@@ -2,6 +2,7 @@
 //! forward-backward check, median flow, and time per frame pair.
 //!
 //! `cargo run --release --example flow_stats -- ../shared/data/tum_fr3_teddy [frames]`
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use std::time::Instant;
 use surfel_slam::dataset::{read_frame, Sequence};

@@ -12,6 +12,7 @@
 //! it, so the fit is an upper bound.
 //!
 //! `cargo run --release --example noise_fit -- ../shared/data/tum_fr3_teddy [step]`
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use surfel_slam::dataset::{read_frame, Sequence};
 use surfel_slam::fusion::{DepthTiles, Measured, Prediction};

@@ -9,6 +9,7 @@
 //! seen. Prints the true error every 10 frames for each noise setting.
 //!
 //! `cargo run --release --example noisy_loop`
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use surfel_slam::eval::ate;
 use surfel_slam::synthetic::{self, loop_pose, NoiseModel, Scene};

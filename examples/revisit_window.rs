@@ -10,6 +10,7 @@
 //! `cargo run --release --example revisit_window -- ../shared/data/tum_fr3_teddy [steps]`
 //! (`steps` defaults to 2N-1: one way forwards and back; more keeps
 //! bouncing between the ends).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use surfel_slam::dataset::{read_frame, Sequence};
 use surfel_slam::eval::ate;

@@ -2,6 +2,7 @@
 //! on a real frame against the model fused from the frames before it.
 //!
 //! `cargo run --release --example tracking_cost -- ../shared/data/tum_fr3_teddy [frames]`
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use std::time::Instant;
 use surfel_slam::dataset::{read_frame, Sequence};

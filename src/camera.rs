@@ -180,7 +180,7 @@ pub fn pixel_of(k: &Intrinsics, p: Vec3) -> Option<(f32, usize)> {
 /// behind the camera or outside the image; the same pixel as [`pixel_of`].
 /// Free of branches, so that the loop vectorises: it is the per-surfel
 /// part of association that every visible surfel pays.
-pub fn project_to_pixels(
+pub fn project_to_pixels_into(
     k: &Intrinsics,
     camera_from_world: &RigidF32,
     positions: &[Vec3],
@@ -275,7 +275,7 @@ mod tests {
                 .collect();
             positions.push(Vec3::NAN);
             let mut pixels = vec![0; positions.len()];
-            project_to_pixels(&k, &camera_from_world, &positions, &mut pixels);
+            project_to_pixels_into(&k, &camera_from_world, &positions, &mut pixels);
             let mut inside = 0;
             for (p, &pixel) in positions.iter().zip(&pixels) {
                 let expected = pixel_of(&k, camera_from_world.point(*p)).map(|(_, i)| i as u32);

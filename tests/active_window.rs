@@ -6,6 +6,7 @@
 //! The synthetic room, noise-free, from a camera that turns in place away
 //! from its first view and back: the first view's surfaces are out of sight
 //! for longer than a short window, so on the return they are inactive.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

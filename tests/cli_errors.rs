@@ -5,6 +5,7 @@
 //! sample clip (always present).
 //!
 //! Run with `--nocapture` to print the table of answers.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -6,6 +6,7 @@
 //! Trajectories are built from the bundled sample clip's real ground truth
 //! (always present) with known errors; the ICL-NUIM test reads
 //! ../shared/data (skipped when absent, a failure when `CI=true`).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use glam::{DAffine3, DQuat, DVec3};
 use std::path::{Path, PathBuf};

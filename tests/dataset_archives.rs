@@ -10,6 +10,7 @@
 //!   ../shared.
 //!
 //! `--nocapture` prints the measured numbers.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 use common::scratch;

@@ -1,5 +1,6 @@
 //! Loaders on the real sequences in `../shared/data` (skipped with a message
 //! when that folder is absent).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

@@ -2,6 +2,7 @@
 //! correction of its end: the end must land on the truth, the pinned start
 //! must stay, the strip must stay rigid; bad input gives errors, never
 //! panics; a rejected optimisation changes nothing.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 use surfel_slam::loop_closure::deformation::{

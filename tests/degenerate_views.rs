@@ -11,6 +11,7 @@
 //! held, and the error stays small; with holding off the same frames slide
 //! while reported tracked (the failure this guards against).
 //! `SURFEL_DEGENERATE_DETAILS=1` prints every frame.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

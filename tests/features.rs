@@ -1,6 +1,7 @@
 //! The sparse feature matcher on the synthetic room: known wide motions
 //! recovered from two rendered RGB-D views, and RANSAC's rigid fit with
 //! injected wrong matches (up to 70 %), errors against the known motion.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 
@@ -8,7 +9,8 @@ use common::synthetic_config;
 use glam::{DAffine3, DVec3, Vec3};
 use surfel_slam::clock::now_ms;
 use surfel_slam::features::{
-    match_features, ransac_rigid, FeatureConfig, FeatureExtractor, RansacConfig, SparseEstimator,
+    match_features_into, ransac_rigid, FeatureConfig, FeatureExtractor, RansacConfig,
+    SparseEstimator,
 };
 use surfel_slam::preprocess::back_project_into;
 use surfel_slam::se3::{exp, motion_magnitude};
@@ -106,13 +108,13 @@ fn ransac_survives_up_to_seventy_percent_wrong_matches() {
     let mut extractor = FeatureExtractor::new(config).expect("config");
     let (mut f0, mut f1) = (Vec::new(), Vec::new());
     extractor
-        .extract(&rgb0, &v0, k.width, k.height, &mut f0)
+        .extract_into(&rgb0, &v0, k.width, k.height, &mut f0)
         .expect("extract");
     extractor
-        .extract(&rgb1, &v1, k.width, k.height, &mut f1)
+        .extract_into(&rgb1, &v1, k.width, k.height, &mut f1)
         .expect("extract");
     let mut matches = Vec::new();
-    match_features(&f0, &f1, &config, &mut matches);
+    match_features_into(&f0, &f1, &config, &mut matches);
     // Keep only the matches the known motion confirms (within 3 cm: depth
     // noise), so that the injected ones are the only wrong ones.
     let pairs: Vec<(Vec3, Vec3)> = matches

@@ -3,6 +3,7 @@
 //! `fuzz/regressions/<target>/`) through the same harness the
 //! fuzz targets run (`fuzz/harness.rs`), under plain `cargo test`: no fuzzer,
 //! no nightly. See fuzz/README.md for running the fuzzers themselves.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 #[path = "../fuzz/harness.rs"]
 mod harness;

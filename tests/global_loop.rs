@@ -3,6 +3,7 @@
 //! keyframes, right against the known truth; a repetitive scene and frames
 //! of other places spliced in close no loop; the real sequences played
 //! forward and back are not worse.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

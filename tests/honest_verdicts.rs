@@ -7,6 +7,7 @@
 //! `SURFEL_SPARSE_ALWAYS=1` runs the sparse estimate on every frame;
 //! `SURFEL_CONSTANT_VELOCITY=1` (or `0`) turns the constant-velocity start on (off);
 //! `SURFEL_NOISE=uniform` (or another `SensorNoise` name) replaces the preset's noise model.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

@@ -1,4 +1,5 @@
 //! Loop closure end to end on the synthetic loop (known truth) and the real sequences.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

@@ -3,6 +3,7 @@
 //! absent, a failure when `CI=true`).
 //!
 //! `cargo test --release --test mesh_accuracy -- --nocapture` prints the numbers.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

@@ -2,6 +2,7 @@
 //! (a sphere of surfels written by the library's PLY writer) becomes a mesh
 //! file; the PLY mesh reads back with an independent reader (ply-rs-bw);
 //! bad arguments are refused with exit code 1 or 2.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use std::process::Command;
 

@@ -1,5 +1,6 @@
 //! Lucas-Kanade on images with a known motion: a sub-pixel shift and a small
 //! rotation + scale, end-point error against the analytic answer.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use glam::{Mat2, Vec2};
 use surfel_slam::flow::{FlowConfig, FlowError, OpticalFlow};

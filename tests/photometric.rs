@@ -1,6 +1,7 @@
 //! Direct (photometric) and joint tracking on the synthetic room: a known
 //! motion recovered from colour alone, and joint mode against the better of
 //! the two single terms.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

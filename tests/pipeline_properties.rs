@@ -17,6 +17,7 @@
 //!
 //! `SURFEL_SLAM_PROPERTY_CASES=N` runs N synthetic cases instead of the
 //! default (seeds 0..N); a failure prints the seed and the step.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

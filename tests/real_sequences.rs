@@ -1,4 +1,5 @@
 //! Accuracy on the real sequences in ../shared/data against their ground truth.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

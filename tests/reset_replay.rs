@@ -6,6 +6,7 @@
 //! Reads ../shared/data/tum_fr3_teddy (skipped with a message when absent,
 //! fails when absent with CI=true); `tests/pipeline_properties.rs` covers the
 //! same class of bug on synthetic frames, which always run.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

@@ -5,6 +5,7 @@
 //! The real-data test (TUM fr3/teddy with dropped frames, blank frames and a
 //! frame of ICL-NUIM spliced in) reads ../shared/data and skips with a
 //! message when it is absent; the synthetic ones always run.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

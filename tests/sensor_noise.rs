@@ -11,6 +11,7 @@
 //! (structured light) and with noise weighting off (`SensorNoise::uniform`),
 //! and compared with the ground truth: ATE and verdicts, and no frame fused
 //! while its pose is far wrong. `SURFEL_NOISE_DETAILS=1` prints every frame.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

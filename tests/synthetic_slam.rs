@@ -1,5 +1,6 @@
 //! Exact-answer tests on the synthetic room: ICP against a known motion,
 //! fusion of a static view, and the whole pipeline against the known trajectory.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
 

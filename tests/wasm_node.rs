@@ -12,6 +12,7 @@
 //! - views, ranges, exports and the dataset functions have the right shapes.
 
 #![cfg(target_arch = "wasm32")]
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod wasm_common;
 

@@ -4,6 +4,7 @@
 //! where `tests/wasm_node.rs` (wasm32, Node) compares its own against them.
 
 #![cfg(not(target_arch = "wasm32"))]
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod wasm_common;
 

@@ -13,7 +13,7 @@ use crate::frame::{Channel, DepthSettings, FrameError, RgbdFrame};
 /// wrapping folder, and `rgb/`-style sub-folders), names '/' separated and
 /// relative to `dir`, hidden entries skipped, sorted.
 pub fn list_files(dir: &Path) -> Result<Vec<String>, DatasetError> {
-    fn walk(
+    fn walk_into(
         base: &Path,
         rel: &str,
         depth: usize,
@@ -46,7 +46,7 @@ pub fn list_files(dir: &Path) -> Result<Vec<String>, DatasetError> {
                     && std::fs::metadata(base.join(&child)).is_ok_and(|m| m.is_dir()));
             if is_dir {
                 if depth > 0 {
-                    walk(base, &child, depth - 1, out)?;
+                    walk_into(base, &child, depth - 1, out)?;
                 }
             } else {
                 out.push(child);
@@ -55,7 +55,7 @@ pub fn list_files(dir: &Path) -> Result<Vec<String>, DatasetError> {
         Ok(())
     }
     let mut out = Vec::new();
-    walk(dir, "", 2, &mut out)?;
+    walk_into(dir, "", 2, &mut out)?;
     out.sort_unstable();
     Ok(out)
 }

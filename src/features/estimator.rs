@@ -4,7 +4,7 @@
 use glam::{DAffine3, Vec3};
 
 use super::{
-    check_frame_size, match_features, ransac_rigid, Feature, FeatureConfig, FeatureError,
+    check_frame_size, match_features_into, ransac_rigid, Feature, FeatureConfig, FeatureError,
     FeatureExtractor, PreparedFrame,
 };
 
@@ -23,7 +23,7 @@ pub struct SparseEstimate {
 }
 
 /// A frame held by [`SparseEstimator`]: colour and points as given (a plain
-/// copy, cheap), reduced ([`FeatureExtractor::prepare`]) and its corners
+/// copy, cheap), reduced ([`FeatureExtractor::prepare_into`]) and its corners
 /// detected only when an estimate asks for its features.
 #[derive(Debug, Clone, Default)]
 struct HeldFrame {
@@ -42,7 +42,7 @@ struct HeldFrame {
 }
 
 impl HeldFrame {
-    /// Keeps a copy of a frame (sizes checked as [`FeatureExtractor::prepare`] does).
+    /// Keeps a copy of a frame (sizes checked as [`FeatureExtractor::prepare_into`] does).
     fn keep(
         &mut self,
         rgb: &[u8],
@@ -74,10 +74,10 @@ impl HeldFrame {
         let (w, h) = (self.width, self.height);
         // The sizes were checked by `keep`.
         if extractor
-            .prepare(&self.rgb, &self.vertices, w, h, &mut self.prepared)
+            .prepare_into(&self.rgb, &self.vertices, w, h, &mut self.prepared)
             .is_ok()
         {
-            extractor.detect(&self.prepared, &mut self.features);
+            extractor.detect_into(&self.prepared, &mut self.features);
         }
         self.detected = true;
     }
@@ -130,7 +130,7 @@ impl SparseEstimator {
         })
     }
 
-    /// Keeps a copy of a frame (see [`FeatureExtractor::extract`] for the
+    /// Keeps a copy of a frame (see [`FeatureExtractor::extract_into`] for the
     /// arguments) as the current frame; it is reduced and its corners
     /// detected only when an estimate asks for them. On error no current
     /// frame is held.
@@ -196,7 +196,7 @@ impl SparseEstimator {
         self.current.detect_with(&mut self.extractor);
         self.reference.detect_with(&mut self.extractor);
         let (current, reference) = (self.current.features(), self.reference.features());
-        match_features(reference, current, &config, &mut self.matches);
+        match_features_into(reference, current, &config, &mut self.matches);
         self.a.clear();
         self.b.clear();
         for &(i, j) in &self.matches {

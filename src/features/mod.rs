@@ -205,8 +205,8 @@ impl FeatureExtractor {
     /// Corners of the `width x height` RGB8 image `rgb` whose depth is
     /// known and smooth in `vertices` (back-projected points, camera frame,
     /// metres, `ZERO` where no depth, same size), written to `out`,
-    /// strongest first: [`Self::prepare`] then [`Self::detect`].
-    pub fn extract(
+    /// strongest first: [`Self::prepare_into`] then [`Self::detect_into`].
+    pub fn extract_into(
         &mut self,
         rgb: &[u8],
         vertices: &[Vec3],
@@ -215,16 +215,16 @@ impl FeatureExtractor {
         out: &mut Vec<Feature>,
     ) -> Result<(), FeatureError> {
         let mut prepared = std::mem::take(&mut self.prepared);
-        let result = self.prepare(rgb, vertices, width, height, &mut prepared);
+        let result = self.prepare_into(rgb, vertices, width, height, &mut prepared);
         if result.is_ok() {
-            self.detect(&prepared, out);
+            self.detect_into(&prepared, out);
         }
         self.prepared = prepared;
         result
     }
 
-    /// Reduces a frame (as for [`Self::extract`]) to what detection needs.
-    pub fn prepare(
+    /// Reduces a frame (as for [`Self::extract_into`]) to what detection needs.
+    pub fn prepare_into(
         &self,
         rgb: &[u8],
         vertices: &[Vec3],
@@ -283,7 +283,7 @@ impl FeatureExtractor {
     }
 
     /// Corners of a prepared frame with smooth depth, strongest first, into `out`.
-    pub fn detect(&mut self, prepared: &PreparedFrame, out: &mut Vec<Feature>) {
+    pub fn detect_into(&mut self, prepared: &PreparedFrame, out: &mut Vec<Feature>) {
         out.clear();
         let scale = 1usize << self.config.level;
         let margin = PATCH_RADIUS + 2;
@@ -358,7 +358,7 @@ fn lift(prepared: &PreparedFrame, (u, v): (usize, usize), spread: f32) -> Option
 /// Matches `a` against `b`: pairs `(i, j)` where `b[j]` is `a[i]`'s nearest
 /// descriptor, clearly nearer than its second nearest (`ratio`), within
 /// `max_distance`, and `a[i]` is in turn `b[j]`'s nearest.
-pub fn match_features(
+pub fn match_features_into(
     a: &[Feature],
     b: &[Feature],
     config: &FeatureConfig,

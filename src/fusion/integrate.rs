@@ -17,7 +17,7 @@ use super::frustum::visible_blocks;
 use super::noise_weights::noise_weights_into;
 use super::surfel_map::{ChunkMut, Surfel};
 use super::{FusionConfig, SurfelMap};
-use crate::camera::project_to_pixels;
+use crate::camera::project_to_pixels_into;
 use crate::camera::Intrinsics;
 use crate::preprocess::{FramePyramid, PyramidLevel};
 use crate::se3::RigidF32;
@@ -231,7 +231,7 @@ impl Integrator {
                 pixels.fill(NO_PIXEL);
                 for range in ChunkBounds::in_chunk(visible, c) {
                     let local = range.start - c * CHUNK..range.end - c * CHUNK;
-                    project_to_pixels(
+                    project_to_pixels_into(
                         k,
                         camera_from_world,
                         &map.positions[range.clone()],

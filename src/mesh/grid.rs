@@ -272,7 +272,7 @@ impl Grid {
                 .for_each_init(
                     || vec![[0.0f32; 6]; BV],
                     |acc, ((&key, sdf), colour)| {
-                        splat.block(key, acc, sdf, colour);
+                        splat.block_into(key, acc, sdf, colour);
                     },
                 );
             progress(0.1 + 0.9 * ((n_done + 1) * batch).min(blocks) as f32 / blocks as f32);
@@ -305,7 +305,13 @@ struct Splat<'a> {
 impl Splat<'_> {
     /// Fills one block: `acc` is scratch (per voxel: weighted distance,
     /// weight, weighted r, g, b, squared distance to the nearest centre).
-    fn block(&self, key: IVec3, acc: &mut [[f32; 6]], sdf: &mut [f32], colour: &mut [[u8; 4]]) {
+    fn block_into(
+        &self,
+        key: IVec3,
+        acc: &mut [[f32; 6]],
+        sdf: &mut [f32],
+        colour: &mut [[u8; 4]],
+    ) {
         acc.fill([0.0, 0.0, 0.0, 0.0, 0.0, f32::INFINITY]);
         let origin = key * B;
         // Positions relative to the block's first voxel keep f32 precise

@@ -163,12 +163,6 @@ pub struct TriangleMesh {
 }
 
 impl TriangleMesh {
-    /// Number of vertices.
-    #[must_use]
-    pub fn vertex_count(&self) -> usize {
-        self.positions.len()
-    }
-
     /// True when the mesh has no triangle.
     #[must_use]
     pub fn is_empty(&self) -> bool {

@@ -219,7 +219,7 @@ fn quads_into(
         let part = (start..end)
             .into_par_iter()
             .fold(Vec::new, |mut out, b| {
-                quads(g, b, &mut out);
+                block_quads_into(g, b, &mut out);
                 out
             })
             .reduce(Vec::new, |mut a, mut b| {
@@ -300,7 +300,7 @@ fn vertex(around: &Around, c: IVec3, s: &[f32; 8]) -> (Vec3, Vec3, [u8; 4]) {
 }
 
 /// Appends the triangles of block `b`'s crossed edges to `out`.
-fn quads(g: &Grid, b: usize, out: &mut Vec<[u32; 3]>) {
+fn block_quads_into(g: &Grid, b: usize, out: &mut Vec<[u32; 3]>) {
     let around = Around {
         grid: g,
         table: &g.neighbours[b],

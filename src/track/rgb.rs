@@ -151,7 +151,7 @@ impl RgbWorkspace {
             gradients_into(level, &mut buffers.image);
             if config.reference == PhotometricReference::Model {
                 let threshold = level_threshold(config, l);
-                select_references(prediction, 1 << l, threshold, &mut buffers.references);
+                select_references_into(prediction, 1 << l, threshold, &mut buffers.references);
             }
         }
     }
@@ -325,7 +325,7 @@ fn gradients_into(level: &PyramidLevel, out: &mut Vec<[f32; 3]>) {
 /// Prediction pixels on a grid of step `stride` whose grey-level gradient
 /// (central differences over `stride` pixels, in grey levels per grid step)
 /// is at least `threshold`.
-fn select_references(
+fn select_references_into(
     prediction: &Prediction,
     stride: usize,
     threshold: f32,
