@@ -180,35 +180,35 @@ impl Slam {
     /// Zero-copy view: valid until the next call into the module.
     #[must_use]
     pub fn positions(&self) -> Float32Array {
-        f32_view(flatten_vec3(&self.pipeline.map().positions))
+        f32_view(flatten_vec3(self.pipeline.map().positions()))
     }
 
     /// Surfel unit normals, `3 * surfelCount` floats, world frame.
     /// Zero-copy view: valid until the next call into the module.
     #[must_use]
     pub fn normals(&self) -> Float32Array {
-        f32_view(flatten_vec3(&self.pipeline.map().normals))
+        f32_view(flatten_vec3(self.pipeline.map().normals()))
     }
 
     /// Surfel colours, `4 * surfelCount` bytes, RGBA.
     /// Zero-copy view: valid until the next call into the module.
     #[must_use]
     pub fn colours(&self) -> Uint8Array {
-        u8_view(self.pipeline.map().colours.as_flattened())
+        u8_view(self.pipeline.map().colours().as_flattened())
     }
 
     /// Surfel radii, `surfelCount` floats, metres.
     /// Zero-copy view: valid until the next call into the module.
     #[must_use]
     pub fn radii(&self) -> Float32Array {
-        f32_view(&self.pipeline.map().radii)
+        f32_view(self.pipeline.map().radii())
     }
 
     /// Surfel confidences, `surfelCount` floats.
     /// Zero-copy view: valid until the next call into the module.
     #[must_use]
     pub fn confidences(&self) -> Float32Array {
-        f32_view(&self.pipeline.map().confidences)
+        f32_view(self.pipeline.map().confidences())
     }
 
     /// `[start, end]`: surfel slots filled by new surfels, or by surfels
