@@ -96,26 +96,30 @@ fn gather<T: Copy>(values: &mut [T], source: impl Fn(usize) -> usize, scratch: &
 
 /// All surfels of the model, structure of arrays; index `i` is one surfel.
 ///
-/// The arrays are read through slice getters ([`SurfelMap::positions`],
-/// ...) and changed only through methods, so every array keeps the same
-/// length and the block boxes and counters stay in step with them.
+/// The arrays are visible only inside `fusion/`: everyone else reads them
+/// through slice getters ([`SurfelMap::positions`], ...) and changes them
+/// only through methods ([`SurfelMap::push`], [`SurfelMap::touch`],
+/// [`SurfelMap::absorb`], [`SurfelMap::warp`], ...), so every array keeps
+/// the same length and the block boxes, the changed range and the
+/// counters stay in step with them. The finer-grained methods that leave
+/// that bookkeeping to their caller are `fusion`'s own.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SurfelMap {
     /// Centre of each surfel, world frame, metres.
-    pub(super) positions: Vec<Vec3>,
+    pub(in crate::fusion) positions: Vec<Vec3>,
     /// Unit normal of each surfel, world frame, pointing towards the cameras that saw it.
-    pub(super) normals: Vec<Vec3>,
+    pub(in crate::fusion) normals: Vec<Vec3>,
     /// Colour, RGBA8 (A = 255).
-    pub(super) colours: Vec<[u8; 4]>,
+    pub(in crate::fusion) colours: Vec<[u8; 4]>,
     /// Disk radius, metres.
-    pub(super) radii: Vec<f32>,
+    pub(in crate::fusion) radii: Vec<f32>,
     /// Accumulated confidence (sum of the radial weights of merged measurements).
-    pub(super) confidences: Vec<f32>,
+    pub(in crate::fusion) confidences: Vec<f32>,
     /// Frame index at which the surfel was created.
-    pub(super) first_seen: Vec<u32>,
+    pub(in crate::fusion) first_seen: Vec<u32>,
     /// Frame index at which the surfel was last updated (created, merged
     /// with a measurement, or won its pixel as a settled surfel).
-    pub(super) last_seen: Vec<u32>,
+    pub(in crate::fusion) last_seen: Vec<u32>,
     /// Lowest index changed since the last `take_changed_range`.
     change_lo: usize,
     /// One past the highest index changed since the last `take_changed_range`.
@@ -123,10 +127,10 @@ pub struct SurfelMap {
     /// Boxes around blocks of consecutive surfels, for view culling.
     bounds: ChunkBounds,
     /// Frame of the last removal of unstable surfels (see `remove_unstable`).
-    pub(super) last_cleanup: Option<u32>,
+    pub(in crate::fusion) last_cleanup: Option<u32>,
     /// Lowest index of a surfel absorbed into another since the last
     /// cleanup: the next cleanup compacts the map from there.
-    pub(super) first_absorbed: Option<usize>,
+    pub(in crate::fusion) first_absorbed: Option<usize>,
     /// Slots holding a surfel absorbed into another (see [`SurfelMap::absorb`])
     /// that no cleanup has removed yet.
     absorbed: usize,
@@ -309,7 +313,7 @@ impl SurfelMap {
 
     /// Records that surfel `i` was modified (for incremental GPU uploads).
     #[inline]
-    pub fn mark_changed(&mut self, i: usize) {
+    pub(in crate::fusion) fn mark_changed(&mut self, i: usize) {
         if self.change_lo >= self.change_hi {
             self.change_lo = i;
             self.change_hi = i + 1;
@@ -392,7 +396,7 @@ impl SurfelMap {
     /// matching item of `per_chunk` (chunks past its length are skipped).
     /// The caller must report moved surfels with [`SurfelMap::grow_bounds`]
     /// and updated ones with [`SurfelMap::saw_block`].
-    pub fn for_each_chunk_mut<T: Send>(
+    pub(in crate::fusion) fn for_each_chunk_mut<T: Send>(
         &mut self,
         per_chunk: &mut [T],
         f: impl Fn(ChunkMut<'_>, &mut T) + Sync + Send,
@@ -423,7 +427,7 @@ impl SurfelMap {
 
     /// Extends the box of the block holding surfel `i` by the box
     /// `[min, max]` (world frame, metres) after surfels of it moved there.
-    pub fn grow_bounds(&mut self, i: usize, min: Vec3, max: Vec3) {
+    pub(in crate::fusion) fn grow_bounds(&mut self, i: usize, min: Vec3, max: Vec3) {
         if min.cmple(max).all() {
             self.bounds.grow(i, min);
             self.bounds.grow(i, max);
@@ -432,7 +436,7 @@ impl SurfelMap {
 
     /// Records that surfels of the block holding surfel `i` were updated at
     /// frame `frame` (after setting their `last_seen` through [`ChunkMut`]).
-    pub fn saw_block(&mut self, i: usize, frame: u32) {
+    pub(in crate::fusion) fn saw_block(&mut self, i: usize, frame: u32) {
         if i < self.len() {
             self.bounds.saw(i, frame);
         }
@@ -449,7 +453,7 @@ impl SurfelMap {
     /// receives the surfel that was at `start + source(i)` (`source` is a
     /// permutation of `0..len`); the caller marks them changed and rebuilds
     /// the chunk boxes.
-    pub fn reorder(
+    pub(in crate::fusion) fn reorder(
         &mut self,
         start: usize,
         len: usize,
@@ -491,21 +495,20 @@ impl SurfelMap {
     }
 
     /// Recomputes the chunk boxes from the chunk holding surfel `first` on.
-    pub fn rebuild_bounds_from(&mut self, first: usize) {
+    pub(in crate::fusion) fn rebuild_bounds_from(&mut self, first: usize) {
         self.bounds
             .rebuild_from(&self.positions, &self.last_seen, first);
-    }
-
-    /// Keeps only the surfels for which `keep(i)` is true, preserving order.
-    pub fn retain_indices(&mut self, mut keep: impl FnMut(usize) -> bool) {
-        self.retain_from(0, |_, i| keep(i));
     }
 
     /// Keeps every surfel before `start` and, from `start` on, those for
     /// which `keep(map, i)` is true, preserving order; `keep` reads surfel
     /// `i` from `map` before anything at or after `i` was moved. Costs
     /// O(len - start).
-    pub fn retain_from(&mut self, start: usize, mut keep: impl FnMut(&SurfelMap, usize) -> bool) {
+    pub(in crate::fusion) fn retain_from(
+        &mut self,
+        start: usize,
+        mut keep: impl FnMut(&SurfelMap, usize) -> bool,
+    ) {
         let len = self.len();
         let start = start.min(len);
         let mut write = start;
@@ -591,7 +594,7 @@ mod tests {
         assert_eq!(map.first_seen()[594], 0);
         assert_eq!(blocks_for(&map, 40..u32::MAX), vec![512..1024]);
         // Removing every other surfel keeps the pairs together.
-        map.retain_indices(|i| i % 2 == 0);
+        map.retain_from(0, |_, i| i % 2 == 0);
         assert_eq!(map.len(), 600);
         assert_eq!(map.last_seen().len(), 600);
         assert_eq!(map.last_seen()[297], 50);
@@ -604,5 +607,53 @@ mod tests {
         assert_eq!(blocks_for(&map, ALL), vec![0..600]);
         map.clear();
         assert!(map.last_seen().is_empty() && blocks_for(&map, ALL).is_empty());
+    }
+
+    #[test]
+    fn a_warp_moves_every_surfel_and_keeps_the_changed_range_and_boxes_right() {
+        let mut map = SurfelMap::default();
+        for i in 0..1200u32 {
+            map.push(
+                Vec3::new(i as f32 * 1e-3, 0.0, 1.0),
+                Vec3::Z,
+                [0; 4],
+                0.01,
+                10.0,
+                i,
+            );
+        }
+        let _ = map.take_changed_range();
+        let far = |min: Vec3, _max: Vec3| min.x >= 10.0;
+        let mut out = Vec::new();
+        map.bounds().select(map.len(), &ALL, far, &mut out);
+        assert!(out.is_empty(), "nothing is beyond x = 10 m yet");
+        // Surfels seen from frame 600 on move 10 m along x and turn.
+        let moved: Result<(), ()> = map.warp(|positions, normals, times| {
+            for ((p, n), &t) in positions.iter_mut().zip(normals.iter_mut()).zip(times) {
+                if t >= 600 {
+                    *p += Vec3::new(10.0, 0.0, 0.0);
+                    *n = Vec3::X;
+                }
+            }
+            Ok(())
+        });
+        assert_eq!(moved, Ok(()));
+        assert!((map.positions()[599].x - 0.599).abs() < 1e-6);
+        assert!((map.positions()[600].x - 10.6).abs() < 1e-5);
+        assert_eq!(map.normals()[1199], Vec3::X);
+        assert_eq!(
+            map.take_changed_range(),
+            0..1200,
+            "the whole map is re-uploaded"
+        );
+        map.bounds().select(map.len(), &ALL, far, &mut out);
+        assert_eq!(
+            out,
+            vec![1024..1200],
+            "only the block wholly moved is beyond 10 m"
+        );
+        // A failed warp is returned, and the bookkeeping done all the same.
+        assert_eq!(map.warp(|_, _, _| Err("refused")), Err("refused"));
+        assert_eq!(map.take_changed_range(), 0..1200);
     }
 }
