@@ -26,20 +26,17 @@ use std::io::Cursor;
 use std::path::PathBuf;
 use surfel_slam::dataset::{read_frame, Sequence};
 use surfel_slam::mesh::write_surfel_ply;
+use surfel_slam::random::SplitMix;
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
 use surfel_slam::track::TrackerMode;
 use surfel_slam::{FrameReport, Intrinsics, Pipeline, PipelineError, RgbdFrame, SlamConfig};
 
-/// SplitMix64: a seeded, dependency-free generator.
-struct Rng(u64);
+/// The crate's seeded generator, with the draws this test needs.
+struct Rng(SplitMix);
 
 impl Rng {
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     fn below(&mut self, n: usize) -> usize {
@@ -336,7 +333,9 @@ fn check(slam: &Pipeline, model: &Model, at: &dyn Fn(&str) -> String) {
 /// `first_run` (when not 0): frames before the first reset or change of
 /// configuration may happen, and a reset right then.
 fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: usize) -> Coverage {
-    let mut rng = Rng(seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ 0x5eed);
+    let mut rng = Rng(SplitMix::new(
+        seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ 0x5eed,
+    ));
     let mut cov = Coverage {
         cases: 1,
         longest_case: steps,
