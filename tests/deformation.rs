@@ -514,3 +514,58 @@ fn measure_a_million_points() {
         rayon::current_num_threads()
     );
 }
+
+/// The issue the pose warp had on a real loop: a 5 cm correction at the
+/// current frame moved the frames just before it 11-12 cm. Every pose of
+/// the strip, bent by the closure, must move by no more than the rigid
+/// correction moves the poses it was measured at (the end's), and the end's
+/// poses by that correction.
+#[test]
+fn no_pose_moves_more_than_the_correction_moves_the_end() {
+    let s = strip();
+    let t = correction();
+    let mut graph =
+        DeformationGraph::from_samples(&s.positions, &s.times, DeformConfig::default()).unwrap();
+    graph.optimise(&closure(&s, &t)).unwrap();
+    // A camera 1.5 m inside the circle looking at the point of frame `time`.
+    let pose_at = |time: u32| {
+        let i = time as usize * WIDTH + WIDTH / 2;
+        let p = s.positions[i].as_dvec3();
+        let eye = p + 1.5 * s.normals[i].as_dvec3();
+        let z = (p - eye).normalize();
+        let x = DVec3::Y.cross(z).normalize();
+        DAffine3::from_cols(x, z.cross(x), z, eye)
+    };
+    let end_motion = (END..ALONG as u32)
+        .map(|time| {
+            let pose = pose_at(time);
+            ((t * pose).translation - pose.translation).length()
+        })
+        .fold(0.0, f64::max);
+    let mut worst = 0.0f64;
+    for time in 0..ALONG as u32 {
+        let pose = pose_at(time);
+        let got = graph.apply_to_pose(&pose, time);
+        let motion = (got.translation - pose.translation).length();
+        worst = worst.max(motion);
+        assert!(
+            motion <= 1.1 * end_motion,
+            "pose {time} moved {:.1} mm, the correction moves the end's {:.1} mm",
+            motion * 1e3,
+            end_motion * 1e3
+        );
+        if time >= END + 10 {
+            let off = (got.translation - (t * pose).translation).length();
+            assert!(
+                off < 0.005,
+                "pose {time} is {:.1} mm off the correction",
+                off * 1e3
+            );
+        }
+    }
+    eprintln!(
+        "largest pose motion {:.1} mm, the end's {:.1} mm",
+        worst * 1e3,
+        end_motion * 1e3
+    );
+}

@@ -281,11 +281,13 @@ impl LoopCloser {
         let found = {
             let map_ref = &*map;
             let (fusion, fused) = (frame.fusion, frame.fused);
-            // The old map: surfels created before the keyframes looked at.
-            // Those created since are the drifted copy of the place; old
-            // surfels seen again since (active again after a closure) are
-            // kept, else the leftovers a closure did not reactivate would
-            // be all the model shows there.
+            // The old map: surfels created before the keyframes looked at
+            // and not seen since the active window began. Those created
+            // since are the drifted copy of the place; old surfels seen
+            // again lately were merged with what the drifted tracker
+            // measured and follow it (on a real kitchen loop 50-91 % of
+            // the model, and registrations landed 0.2-2.5 cm from the
+            // tracked pose whatever the drift).
             let before = now.saturating_sub(config.min_age_frames);
             let first_seen = map_ref.first_seen();
             find_global_match(
@@ -293,7 +295,7 @@ impl LoopCloser {
                 look.pyramid,
                 Model {
                     map: map_ref,
-                    seen: 0..u32::MAX,
+                    seen: fusion.inactive_at(now),
                     include: |i| {
                         fusion.predicts(map_ref, i, fused)
                             && first_seen.get(i).is_some_and(|&t| t < before)

@@ -137,7 +137,7 @@ pub struct ModelRegistration {
 
 /// Brings a prediction's world-frame maps into the camera frame of the pose
 /// it was rendered from, as a pyramid level (`ZERO` where no surfel).
-fn to_camera_frame(prediction: &Prediction, out: &mut PyramidLevel) {
+fn to_camera_frame_into(prediction: &Prediction, out: &mut PyramidLevel) {
     let camera_from_world = RigidF32::from_affine(&prediction.world_from_camera.inverse());
     let n = prediction.vertices.len();
     out.intrinsics = prediction.intrinsics;
@@ -180,7 +180,7 @@ impl ModelRegistration {
             return Registration::rejected(Rejection::TooLittleOverlap, overlap);
         }
         let view = inactive.world_from_camera;
-        to_camera_frame(inactive, &mut self.target);
+        to_camera_frame_into(inactive, &mut self.target);
         let (camera_from_world, start_residual_rms_m) = self.align(active, view.inverse(), config);
         if !(view * camera_from_world).is_finite() {
             return Registration::rejected(Rejection::Degenerate, overlap);

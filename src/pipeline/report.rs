@@ -99,7 +99,7 @@ pub struct FrameReport {
     pub timestamp: f64,
     /// Estimated camera pose (camera to world).
     pub world_from_camera: DAffine3,
-    /// Tracked, lost or initialised.
+    /// Initialised, tracked, held, recovered or lost (see [`Verdict`]).
     pub verdict: Verdict,
     /// Inlier correspondences at the finest level.
     pub inliers: usize,

@@ -129,16 +129,6 @@ impl DeformationGraph {
         }
     }
 
-    /// Moves one deformed point (world frame, metres) observed at frame `t`,
-    /// in `f64` (for tests and constraint errors).
-    #[must_use]
-    pub fn apply_to_point(&self, p: Vec3, t: u32) -> Vec3 {
-        if self.is_empty() {
-            return p;
-        }
-        self.moved_point(p.as_dvec3(), t).as_vec3()
-    }
-
     /// A camera pose (`world_from_camera`, metres) of frame `time`, moved
     /// as the surfaces it saw: points in front of the camera (a 3x3 fan at
     /// [`VIEW_DEPTHS_M`], where such a camera's surfaces lie) are moved by
