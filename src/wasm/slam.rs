@@ -16,6 +16,7 @@ use crate::dataset::{
     trajectory::{format_tum, parse_tum},
 };
 use crate::eval;
+use crate::camera::CameraPreset;
 use crate::pipeline::Pipeline;
 
 /// Dense RGB-D SLAM: camera trajectory and surfel map from RGB-D frames.
@@ -269,6 +270,43 @@ impl Slam {
     /// build to rounding: its parallel sums vary in the last digits).
     pub fn reset(&mut self) {
         self.pipeline.reset();
+    }
+
+    /// Checks the settings against the dataset's layout: `layoutPreset` is
+    /// the preset `parseSequence` gave (`sequence.preset`), `chosenPreset`
+    /// the one the config was made from (default: the same). Returns the
+    /// warnings found (each names the setting); also in `settingsWarnings()`.
+    #[wasm_bindgen(js_name = checkLayout, unchecked_return_type = "string[]")]
+    pub fn check_layout(
+        &mut self,
+        #[wasm_bindgen(js_name = "layoutPreset", unchecked_param_type = "PresetName")]
+        layout_preset: &str,
+        #[wasm_bindgen(js_name = "chosenPreset", unchecked_param_type = "PresetName | undefined")]
+        chosen_preset: Option<String>,
+    ) -> Result<Array, JsError> {
+        let named = |name: &str| {
+            CameraPreset::from_name(name)
+                .ok_or_else(|| JsError::new(&format!("unknown preset {name:?}")))
+        };
+        let detected = named(layout_preset)?;
+        let chosen = match chosen_preset {
+            Some(name) => named(&name)?,
+            None => detected,
+        };
+        let found = self.pipeline.check_layout(detected, chosen);
+        Ok(found.iter().map(|w| JsValue::from(w.to_string())).collect())
+    }
+
+    /// Every camera-settings warning found so far: the depth check on the
+    /// first frame and `checkLayout`'s (each names the setting).
+    #[wasm_bindgen(js_name = settingsWarnings, unchecked_return_type = "string[]")]
+    #[must_use]
+    pub fn settings_warnings(&self) -> Array {
+        self.pipeline
+            .settings_warnings()
+            .iter()
+            .map(|w| JsValue::from(w.to_string()))
+            .collect()
     }
 }
 
