@@ -53,6 +53,7 @@ const status = {
   sequenceKind: null,
   errors: [], // every message since the sequence was opened, oldest first
   shownErrors: [], // the messages on the page now, newest first (cleared by a new run or a good Apply)
+  warnings: [], // camera-settings warnings of the current run (layout check, first frame's depth check)
   moduleFailures: 0, // times the wasm module failed (each time rebuilt at the next action)
   failed: false, // the module has failed and not been rebuilt yet
   positionErrorCm: null, // last frame's distance to the ground truth (aligned at its first pose), cm
@@ -93,13 +94,23 @@ function reportError(text) {
   status.errors.push(text);
   if (status.errors.length > 50) status.errors.shift();
   board.report(text);
-  status.shownErrors = [...board.shown];
+  status.shownErrors = board.texts();
   console.warn(`surfel-slam: ${text}`);
+}
+
+/** A camera setting that looks wrong for the data: shown with the errors, kept in status.warnings. */
+function reportWarning(text) {
+  const line = `camera settings: ${text}`;
+  status.warnings.push(line);
+  board.report(line, 'warning');
+  status.shownErrors = board.texts();
+  console.warn(`surfel-slam: ${line}`);
 }
 
 /** A new run or new settings: the messages about the old one no longer apply. */
 function clearMessages() {
   status.error = null;
+  status.warnings = [];
   board.clear();
   status.shownErrors = [];
 }
@@ -337,6 +348,7 @@ const handlers = {
     const gt = msg.groundTruth.length ? `, ground truth ${msg.groundTruth.length} poses` : ', no ground truth';
     sequence.line = `${msg.name} — ${msg.kind}, ${msg.frameCount} frames${gt}, camera ${msg.preset}`;
     ui.sequenceInfo.textContent = sequence.line;
+    for (const w of msg.warnings ?? []) reportWarning(w);
     setControls();
   },
 
@@ -344,6 +356,7 @@ const handlers = {
     const t0 = performance.now();
     status.flowTracks = msg.flow?.tracks ? msg.flow.tracks.length / 4 : 0;
     stats.onFrame(msg);
+    if (msg.result.settingsWarning) reportWarning(msg.result.settingsWarning);
     countRunFrame(msg);
     noteColourDecoder(msg);
     mirror.update(msg.surfels);
@@ -411,6 +424,7 @@ const handlers = {
     clearMessages();
     if (sequence) ui.sequenceInfo.textContent = sequence.line;
     ui.sequenceInfo.classList.remove('failed');
+    for (const w of msg.warnings ?? []) reportWarning(w);
     if (msg.config) setDisplayFrame(msg.config);
     status.failed = false;
     clearMap();

@@ -15,14 +15,19 @@ export class MessageBoard {
     el.close.addEventListener('click', () => this.clear());
   }
 
-  /** Shows `text` first, above the earlier messages of this run. */
-  report(text) {
-    this.shown.unshift(text);
+  /** Shows `text` first, above the earlier messages of this run; `kind`: 'error' or 'warning'. */
+  report(text, kind = 'error') {
+    this.shown.unshift({ text, kind });
     if (this.shown.length > SHOWN) {
       this.shown.length = SHOWN;
       this.older++;
     }
     this.render();
+  }
+
+  /** The texts shown, newest first. */
+  texts() {
+    return this.shown.map((m) => m.text);
   }
 
   /** Removes every message (a new run or a successful change of settings). */
@@ -36,8 +41,8 @@ export class MessageBoard {
     const { box, text } = this.el;
     const lines = this.shown.map((m, i) => {
       const li = document.createElement('li');
-      li.textContent = m;
-      if (i === 0) li.className = 'latest';
+      li.textContent = m.text;
+      li.className = i === 0 ? `${m.kind} latest` : m.kind;
       return li;
     });
     if (this.older > 0) {

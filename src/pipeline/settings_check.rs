@@ -222,10 +222,14 @@ pub struct SettingsCheck {
 }
 
 impl SettingsCheck {
-    fn add(&mut self, warning: SettingsWarning) {
+    /// Keeps `warning`; `with_frame`: hand it to the next frame report too
+    /// (a caller of a check gets its warnings as the check's result).
+    fn add(&mut self, warning: SettingsWarning, with_frame: bool) {
         if !self.warnings.contains(&warning) {
             self.warnings.push(warning);
-            self.unreported.push(warning);
+            if with_frame {
+                self.unreported.push(warning);
+            }
         }
     }
 
@@ -243,7 +247,8 @@ impl Pipeline {
     }
 
     /// Checks the settings (made from preset `chosen`) against the folder's
-    /// layout (its preset `detected`); the warnings found are kept and returned.
+    /// layout (its preset `detected`); the warnings found are kept and
+    /// returned (not repeated in frame reports).
     pub fn check_layout(
         &mut self,
         detected: CameraPreset,
@@ -251,13 +256,14 @@ impl Pipeline {
     ) -> Vec<SettingsWarning> {
         let found = layout_warnings(detected, chosen, &self.config);
         for w in &found {
-            self.settings_check.add(*w);
+            self.settings_check.add(*w, false);
         }
         found
     }
 
     /// Checks the depth scale on raw depth values (the first image given
-    /// only); a warning found is kept and returned.
+    /// only); a warning found is kept, returned, and reported with the next
+    /// frame.
     pub fn check_depth_raw(&mut self, raw: &[u16]) -> Option<SettingsWarning> {
         if self.settings_check.depth_checked {
             return None;
@@ -265,7 +271,8 @@ impl Pipeline {
         self.settings_check.depth_checked = true;
         let found = depth_scale_warning(raw, &self.config.depth);
         if let Some(w) = found {
-            self.settings_check.add(w);
+            // Reported with the frame: `push_png` checks before decoding.
+            self.settings_check.add(w, true);
         }
         found
     }

@@ -61,6 +61,12 @@ fn f32_view(data: &[f32]) -> Float32Array {
     unsafe { Float32Array::view(data) }
 }
 
+/// A push's error naming the frame by its timestamp (the caller's, as in
+/// the trajectory), then the problem.
+fn frame_error(timestamp: f64, e: &dyn std::fmt::Display) -> JsError {
+    JsError::new(&format!("frame at timestamp {timestamp}: {e}"))
+}
+
 fn u8_view(data: &[u8]) -> Uint8Array {
     // SAFETY: see the comment above.
     unsafe { Uint8Array::view(data) }
@@ -84,7 +90,8 @@ impl Slam {
     }
 
     /// Decodes a colour image (PNG or JPEG) and a 16-bit depth PNG and
-    /// processes the frame. Throws (and changes nothing) on bad bytes.
+    /// processes the frame. Throws (and changes nothing) on bad bytes; the
+    /// message starts `frame at timestamp T:`.
     #[wasm_bindgen(js_name = pushFrame, unchecked_return_type = "FrameReport")]
     pub fn push_frame(
         &mut self,
@@ -92,7 +99,10 @@ impl Slam {
         depth: &[u8],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
-        let report = self.pipeline.push_png(colour, depth, timestamp)?;
+        let report = self
+            .pipeline
+            .push_png(colour, depth, timestamp)
+            .map_err(|e| frame_error(timestamp, &e))?;
         Ok(report_to_js(&report))
     }
 
@@ -111,6 +121,7 @@ impl Slam {
         #[wasm_bindgen(js_name = "depthPng")] depth_png: &[u8],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
+        // No frame prefix here: the page's worker names the files itself.
         let report = self.pipeline.push_rgba_depth_png(
             width as usize,
             height as usize,

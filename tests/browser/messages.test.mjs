@@ -3,7 +3,8 @@
 // run or a successful Apply clears what no longer applies; a failed open
 // says so on the sequence line. The cases a new user hit, in their order:
 // a run with a skipped frame, Apply with fx = 0, a folder that is no
-// dataset, a truncated archive, then a good Apply. A screenshot of each
+// dataset, a truncated archive, then a good Apply; then the camera-settings
+// warning of a wrong preset (item 2). A screenshot of each
 // state goes to target/browser-screenshots/messages-*.png.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
@@ -90,7 +91,8 @@ test('each problem is shown over the map, newest first, and cleared when it no l
     // 4. A good Apply: a new run; the stale fx = 0 message (and the others) are gone.
     await page.locator('#fx').fill('535.4');
     await page.locator('#apply-intrinsics').click();
-    status = await waitForStatus(page, (s) => s.done && !s.playing && s.framesProcessed + s.framesFailed === 6, { timeoutMs: 120_000 });
+    // (The old run was done too: wait for the new one, which cleared the board.)
+    status = await waitForStatus(page, (s) => !s.shownErrors.some((e) => /fx = 0/.test(e)) && s.done && !s.playing && s.framesProcessed + s.framesFailed === 6, { timeoutMs: 120_000 });
     const after = await shownText(page);
     t.diagnostic(`after a good Apply: ${JSON.stringify(status.shownErrors)}`);
     assert.doesNotMatch(after, /fx = 0/, 'the stale fx = 0 message is gone');
@@ -99,6 +101,20 @@ test('each problem is shown over the map, newest first, and cleared when it no l
     assert.deepEqual(status.shownErrors.length, 1, JSON.stringify(status.shownErrors));
     assert.match(status.shownErrors[0], new RegExp(path.basename(gone).replace('.', '\\.')));
     saveScreenshot('messages-5-good-apply.png', await page.screenshot());
+
+    // 5. The 7-Scenes preset on this TUM folder (issue 34, item 2): warnings
+    // naming the preset and the depth scale, shown like the errors; the
+    // right preset has none.
+    await page.locator('#preset').selectOption('7-scenes');
+    status = await waitForStatus(page, (s) => s.warnings.some((w) => /depth scale 1000 units\/m looks wrong/.test(w)), { timeoutMs: 60_000 });
+    t.diagnostic(`7-scenes preset: ${JSON.stringify(status.warnings)}`);
+    assert.ok(status.warnings.some((w) => /preset 7-scenes does not match/.test(w)), JSON.stringify(status.warnings));
+    shown = await newestOnScreen(page);
+    assert.ok(shown.visible, 'the warning is in the viewport');
+    saveScreenshot('messages-6-wrong-preset-warning.png', await page.screenshot());
+    await page.locator('#preset').selectOption('tum-fr3');
+    status = await waitForStatus(page, (s) => s.warnings.length === 0 && s.done && !s.playing && s.framesProcessed + s.framesFailed === 6, { timeoutMs: 120_000 });
+    assert.deepEqual(status.warnings, [], 'the right preset: no warning');
   } finally {
     await env.close();
     fs.rmSync(tmp, { recursive: true, force: true });
