@@ -69,12 +69,7 @@ fn icl_nuim_with_a_positive_fy_names_fy() {
     let Some(dir) = shared_dataset("icl_office_kt0") else {
         return;
     };
-    let wrong = warnings_on(
-        &dir,
-        CameraPreset::IclNuim,
-        |c| c.intrinsics.fy = 480.0,
-        2,
-    );
+    let wrong = warnings_on(&dir, CameraPreset::IclNuim, |c| c.intrinsics.fy = 480.0, 2);
     eprintln!("icl-nuim, fy 480: {wrong:#?}");
     assert_eq!(wrong.len(), 1, "{wrong:?}");
     assert!(wrong[0].starts_with("fy = 480"), "{wrong:?}");

@@ -17,8 +17,8 @@ use surfel_slam::{FrameReport, Pipeline, SlamConfig, Verdict};
 
 use crate::mesh_file::{mesh_format, write_mesh_file};
 use crate::{
-    config_for, describe, evaluate, mesh_path, positive, voxel_size, CameraOverrides,
-    TrackingArgs, MAX_DT,
+    config_for, describe, evaluate, mesh_path, positive, voxel_size, CameraOverrides, TrackingArgs,
+    MAX_DT,
 };
 
 /// Exit code of a run that finished with some frames skipped as unreadable.

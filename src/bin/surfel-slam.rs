@@ -184,7 +184,9 @@ fn focal(s: &str) -> Result<f32, String> {
     if (1.0..=1e6).contains(&v.abs()) {
         Ok(v)
     } else {
-        Err(format!("{v} px: a focal length is 1 to 1e6 px (or -1e6 to -1)"))
+        Err(format!(
+            "{v} px: a focal length is 1 to 1e6 px (or -1e6 to -1)"
+        ))
     }
 }
 
@@ -294,9 +296,9 @@ impl CameraOverrides {
     /// `--depth-max` when both are given.
     fn usage_problem(&self) -> Option<String> {
         match (self.depth_min, self.depth_max) {
-            (Some(lo), Some(hi)) if lo >= hi => Some(format!(
-                "--depth-min {lo} must be below --depth-max {hi}"
-            )),
+            (Some(lo), Some(hi)) if lo >= hi => {
+                Some(format!("--depth-min {lo} must be below --depth-max {hi}"))
+            }
             _ => None,
         }
     }

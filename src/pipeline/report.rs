@@ -1,9 +1,9 @@
 //! What the pipeline says about each frame: verdict, counts, timings.
 
+use super::SettingsWarning;
 use crate::fusion::FusionStats;
 use crate::loop_closure::global::GlobalClosure;
 use crate::loop_closure::local::Registration;
-use super::SettingsWarning;
 use crate::track::verify::TrackingChecks;
 use crate::track::LostReason;
 use glam::DAffine3;

@@ -125,10 +125,9 @@ impl Slam {
     #[wasm_bindgen(js_name = exportMesh)]
     pub fn export_mesh(
         &self,
-        #[wasm_bindgen(unchecked_param_type = "MeshOptions")] options: Option<Object>,
-        #[wasm_bindgen(unchecked_param_type = "(fraction: number) => void")] progress: Option<
-            Function,
-        >,
+        #[wasm_bindgen(unchecked_optional_param_type = "MeshOptions")] options: Option<Object>,
+        #[wasm_bindgen(unchecked_optional_param_type = "(fraction: number) => void")]
+        progress: Option<Function>,
     ) -> Result<Vec<u8>, JsError> {
         let stable = self.pipeline().config().fusion.stable_confidence;
         let (format, config) = parse_options(&options_value(options), stable)?;
@@ -158,8 +157,10 @@ impl Slam {
 #[wasm_bindgen(js_name = meshSurfelPly)]
 pub fn mesh_surfel_ply(
     ply: &[u8],
-    #[wasm_bindgen(unchecked_param_type = "MeshOptions")] options: Option<Object>,
-    #[wasm_bindgen(unchecked_param_type = "(fraction: number) => void")] progress: Option<Function>,
+    #[wasm_bindgen(unchecked_optional_param_type = "MeshOptions")] options: Option<Object>,
+    #[wasm_bindgen(unchecked_optional_param_type = "(fraction: number) => void")] progress: Option<
+        Function,
+    >,
 ) -> Result<Vec<u8>, JsError> {
     let map = read_surfel_ply(ply)?;
     let stable = crate::fusion::FusionConfig::default().stable_confidence;

@@ -11,12 +11,12 @@ use wasm_bindgen::prelude::*;
 
 use super::config::slam_config_from_js;
 use super::convert::{ate_to_js, max_dt_from_js, report_to_js};
+use crate::camera::CameraPreset;
 use crate::dataset::{
     ply::write_ply,
     trajectory::{format_tum, parse_tum},
 };
 use crate::eval;
-use crate::camera::CameraPreset;
 use crate::pipeline::Pipeline;
 
 /// Dense RGB-D SLAM: camera trajectory and surfel map from RGB-D frames.
@@ -292,7 +292,7 @@ impl Slam {
         &mut self,
         #[wasm_bindgen(js_name = "layoutPreset", unchecked_param_type = "PresetName")]
         layout_preset: &str,
-        #[wasm_bindgen(js_name = "chosenPreset", unchecked_param_type = "PresetName | undefined")]
+        #[wasm_bindgen(js_name = "chosenPreset", unchecked_optional_param_type = "PresetName")]
         chosen_preset: Option<String>,
     ) -> Result<Array, JsError> {
         let named = |name: &str| {
