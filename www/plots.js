@@ -195,7 +195,7 @@ export class Plots {
     this.charts = {
       timing: canvases.timing ? new Chart(canvases.timing, 'ms per frame by stage', 'ms') : null,
       surfels: canvases.surfels ? new Chart(canvases.surfels, 'surfels in the map', '') : null,
-      error: canvases.error ? new Chart(canvases.error, 'drift since frame 0 (GT aligned there; not ATE)', 'cm') : null,
+      error: canvases.error ? new Chart(canvases.error, 'drift since frame 0 (not ATE)', 'cm') : null,
     };
     this.visible = true;
     this.timer = null;
