@@ -121,3 +121,42 @@ fn synthetic_depth_at_the_wrong_scale_is_named() {
     let large = first_warning(right.scale * 10.0, 0.5).expect("a warning");
     assert!(large.contains("nearer than the 0.5 m minimum"), "{large}");
 }
+
+/// The CLI names the settings on stderr and counts them on the summary line
+/// (the bundled teddy clip, always present): the 7-Scenes preset warns, the
+/// detected one does not; neither changes the exit code.
+#[test]
+fn the_cli_warns_about_the_7_scenes_preset_on_teddy() {
+    let clip =
+        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("www/sample/tum_fr3_teddy_clip");
+    let run = |extra: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_surfel-slam"))
+            .arg("run")
+            .arg(&clip)
+            .args(["--quiet", "--count", "3"])
+            .args(extra)
+            .output()
+            .expect("the CLI runs");
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+        )
+    };
+    let (code, stderr, stdout) = run(&["--preset", "7-scenes"]);
+    eprintln!("{stderr}{stdout}");
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("warning: camera settings: depth scale 1000 units/m looks wrong"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("warning: camera settings: preset 7-scenes does not match"),
+        "{stderr}"
+    );
+    assert!(stdout.contains("camera-settings warning(s)"), "{stdout}");
+    let (code, stderr, stdout) = run(&[]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
+    assert!(!stdout.contains("camera-settings"), "{stdout}");
+}
