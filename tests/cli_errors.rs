@@ -200,12 +200,24 @@ fn bad_folders_and_settings_are_refused_by_name() {
     let tmp = scratch("folders");
     let (good, _, depth) = tum_clip(&tmp.0, "good");
 
-    let a = run(&good, &["--fx", "0.5354"]);
-    expect("absurd intrinsics (--fx 0.5354)", &a, 1, &["fx = 0.5354"]);
+    // Values that do not fit this data's images exit 1 (out of every
+    // option's own range: exit 2, bad_command_lines_exit_2_naming_the_option).
+    let a = run(&good, &["--fx", "5.354"]);
+    expect(
+        "implausible focal length for 640x480 (--fx 5.354)",
+        &a,
+        1,
+        &["fx = 5.354"],
+    );
     let a = run(&good, &["--cy", "1e9"]);
     expect("absurd principal point (--cy 1e9)", &a, 1, &["cy"]);
-    let a = run(&good, &["--depth-scale", "0"]);
-    expect("depth scale 0", &a, 1, &["depth scale"]);
+    let a = run(&good, &["--depth-min", "5"]);
+    expect(
+        "depth minimum beyond the preset's maximum (4 m)",
+        &a,
+        1,
+        &["depth range"],
+    );
 
     let empty = tmp.0.join("empty");
     std::fs::create_dir_all(&empty).expect("dir");
@@ -393,12 +405,9 @@ fn bad_command_lines_exit_2_naming_the_option() {
         expect(case, &cli(&args), 2, &needles);
     }
     // Negative numbers are values, not options: --fy -480 gets as far as
-    // the camera check (a negative fy is valid; cx = -1e9 is not).
+    // the camera check (a negative fy is valid; cx = -1e9 is not, for this image).
     let a = run(&good, &["--count", "2", "--fy", "-480", "--cx", "-1e9"]);
     expect("negative numbers as values", &a, 1, &["cx"]);
-    // Settings clap cannot judge alone (they depend on the image) exit 1.
-    let a = run(&good, &["--depth-min", "5", "--depth-max", "1"]);
-    expect("depth range empty", &a, 1, &["depth"]);
     // Help is not an error.
     let a = cli(&["run", "--help"]);
     assert_eq!(a.code, 0, "{}", a.stderr);
@@ -416,4 +425,174 @@ fn bad_command_lines_exit_2_naming_the_option() {
             a.stdout
         );
     }
+}
+
+/// Every numeric option of every command with a bad value, and every output
+/// file with an extension of no format (as `--option=value`, so that a
+/// value like `-inf` is not read as an option): exit 2, the option named, decided
+/// before any file is read (the dataset path does not exist: reading it
+/// first would exit 1). The README's exit-code table states this rule.
+#[test]
+fn every_numeric_option_and_output_extension_exits_2_before_reading() {
+    let tmp = scratch("options");
+    let (good, _, _) = tum_clip(&tmp.0, "good");
+    let gt = good.join("groundtruth.txt");
+    let g = gt.to_str().expect("utf-8");
+    let nowhere = tmp.0.join("no_such_folder");
+    let n = nowhere.to_str().expect("utf-8");
+    let ply = tmp.0.join("no_such_map.ply");
+    let p = ply.to_str().expect("utf-8");
+    // (command line, the option stderr must name)
+    let mut cases: Vec<(Vec<&str>, &str)> = Vec::new();
+    for command in ["run", "bench"] {
+        for (option, values) in [
+            ("--fx", &["0", "0.5", "-0.5", "2e6", "NaN", "abc"][..]),
+            ("--fy", &["0", "inf", "x"][..]),
+            ("--cx", &["NaN", "inf", "x"][..]),
+            ("--cy", &["-inf", "x"][..]),
+            ("--depth-scale", &["0", "-5000", "NaN", "x"][..]),
+            ("--depth-min", &["-0.1", "NaN", "x"][..]),
+            ("--depth-max", &["0", "-1", "inf", "x"][..]),
+            ("--max-surfels", &["0", "-1", "1.5", "x"][..]),
+            ("--icp-weight", &["-1", "inf", "x"][..]),
+            ("--noise", &["1", "1,2,3,4,5,6,7", "loud"][..]),
+            ("--min-noise-weight", &["-0.5", "NaN"][..]),
+        ] {
+            for value in values {
+                cases.push((vec![command, n, leak(format!("{option}={value}"))], option));
+            }
+        }
+        cases.push((
+            vec![command, n, "--depth-min", "5", "--depth-max", "1"],
+            "--depth-min",
+        ));
+        cases.push((
+            vec![command, n, "--depth-min", "2", "--depth-max", "2"],
+            "--depth-max",
+        ));
+    }
+    for (option, values) in [
+        ("--first", &["-1", "1.5", "x"][..]),
+        ("--count", &["0", "-3", "x"][..]),
+        ("--stride", &["0", "-2", "x"][..]),
+        ("--voxel-size", &["0", "-0.01", "2", "NaN", "x"][..]),
+    ] {
+        for value in values {
+            cases.push((vec!["run", n, leak(format!("{option}={value}"))], option));
+        }
+    }
+    for value in ["0", "-1", "x"] {
+        cases.push((
+            vec!["bench", n, leak(format!("--frames={value}"))],
+            "--frames",
+        ));
+    }
+    for value in ["0", "2", "-0.01", "x"] {
+        cases.push((
+            vec![
+                "mesh",
+                p,
+                "-o",
+                "m.glb",
+                leak(format!("--voxel-size={value}")),
+            ],
+            "--voxel-size",
+        ));
+    }
+    for value in ["NaN", "x"] {
+        cases.push((
+            vec![
+                "mesh",
+                p,
+                "-o",
+                "m.glb",
+                leak(format!("--min-confidence={value}")),
+            ],
+            "--min-confidence",
+        ));
+    }
+    for value in ["-0.1", "NaN", "x"] {
+        cases.push((
+            vec!["eval", g, g, leak(format!("--max-dt={value}"))],
+            "--max-dt",
+        ));
+    }
+    // Output files whose extension names no format.
+    for ext in ["stl", "gltf", "txt", ""] {
+        let mesh = format!("out.{ext}");
+        cases.push((vec!["run", n, "--mesh", leak(mesh.clone())], "--mesh"));
+        cases.push((vec!["mesh", p, "-o", leak(mesh)], "--output"));
+    }
+    for ext in ["jpg", "pdf", "svgz"] {
+        cases.push((
+            vec!["eval", g, g, "--plot", leak(format!("out.{ext}"))],
+            "--plot",
+        ));
+    }
+    for (args, option) in &cases {
+        let a = cli(args);
+        let case = args.join(" ");
+        expect(&case, &a, 2, &[option]);
+        assert!(
+            !a.stderr.contains("no_such"),
+            "{case}: a file was looked at before the command line was judged:\n{}",
+            a.stderr
+        );
+    }
+    eprintln!("{} bad command lines, each exit 2", cases.len());
+}
+
+/// Every output extension that names a format is written (exit 0).
+#[test]
+fn every_output_extension_with_a_format_is_written() {
+    let tmp = scratch("outputs");
+    let (good, _, _) = tum_clip(&tmp.0, "good");
+    let out = |name: &str| tmp.0.join(name);
+    let mut args: Vec<String> = vec!["run".into(), good.display().to_string(), "--quiet".into()];
+    for (flag, file) in [
+        ("--trajectory", "t.txt"),
+        ("--online-trajectory", "o.txt"),
+        ("--ply", "map.ply"),
+        ("--mesh", "mesh.glb"),
+    ] {
+        args.push(flag.into());
+        args.push(out(file).display().to_string());
+    }
+    let a = cli(&args);
+    assert_eq!(a.code, 0, "{}", a.stderr);
+    for ext in ["ply", "obj", "glb"] {
+        let mesh = out(&format!("m.{ext}"));
+        let a = cli(&[
+            "mesh".as_ref(),
+            out("map.ply").as_os_str(),
+            "-o".as_ref(),
+            mesh.as_os_str(),
+        ]);
+        assert_eq!(a.code, 0, "mesh -o .{ext}: {}", a.stderr);
+        assert!(
+            std::fs::metadata(&mesh).is_ok_and(|m| m.len() > 0),
+            ".{ext} written"
+        );
+    }
+    let gt = good.join("groundtruth.txt");
+    for ext in ["svg", "png"] {
+        let plot = out(&format!("plot.{ext}"));
+        let a = cli(&[
+            "eval".as_ref(),
+            gt.as_os_str(), // the ground truth against itself: the plot is what is tested
+            gt.as_os_str(),
+            "--plot".as_ref(),
+            plot.as_os_str(),
+        ]);
+        assert_eq!(a.code, 0, "eval --plot .{ext}: {}", a.stderr);
+        assert!(
+            std::fs::metadata(&plot).is_ok_and(|m| m.len() > 0),
+            ".{ext} written"
+        );
+    }
+}
+
+/// A `&'static str` for the case table (a test process; freed at exit).
+fn leak(s: String) -> &'static str {
+    Box::leak(s.into_boxed_str())
 }

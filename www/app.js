@@ -15,6 +15,7 @@ import { CameraSettings } from './camera-settings.js';
 import { DisplayFrame, GroundTruthTrack } from './display-frame.js';
 import { downloadMirror, isMeshExport, saveExport } from './downloads.js';
 import { wireViewControls } from './view-controls.js';
+import { MessageBoard } from './messages.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -50,7 +51,9 @@ const status = {
   frameCount: 0,
   sequence: null,
   sequenceKind: null,
-  errors: [],
+  errors: [], // every message since the sequence was opened, oldest first
+  shownErrors: [], // the messages on the page now, newest first (cleared by a new run or a good Apply)
+  warnings: [], // camera-settings warnings of the current run (layout check, first frame's depth check)
   moduleFailures: 0, // times the wasm module failed (each time rebuilt at the next action)
   failed: false, // the module has failed and not been rebuilt yet
   positionErrorCm: null, // last frame's distance to the ground truth (aligned at its first pose), cm
@@ -75,8 +78,6 @@ const ui = {
   pointsGlb: $('points-glb-button'),
   meshProgress: $('mesh-progress'),
   viewMesh: $('view-mesh'),
-  message: $('message'),
-  messageText: $('message-text'),
   depthScale: $('depth-scale'),
 };
 
@@ -86,26 +87,33 @@ let run = { first: 0, frames: 0 }; // wall clock of this playback run
 
 // ---- messages on the page ------------------------------------------------------
 
-function showMessage(text, kind = 'error') {
-  ui.messageText.textContent = text;
-  ui.message.className = kind;
-  ui.message.hidden = false;
-}
+const board = new MessageBoard({ box: $('message'), text: $('message-text'), close: $('message-close') });
 
 function reportError(text) {
   status.error = text;
   status.errors.push(text);
   if (status.errors.length > 50) status.errors.shift();
-  // Show the latest few errors, newest last, so an earlier one is not hidden by a later one.
-  const recent = status.errors.slice(-3);
-  const more = status.errors.length > 3 ? `(${status.errors.length - 3} earlier not shown)\n` : '';
-  showMessage(more + recent.join('\n'), 'error');
+  board.report(text);
+  status.shownErrors = board.texts();
   console.warn(`surfel-slam: ${text}`);
 }
 
-$('message-close').addEventListener('click', () => {
-  ui.message.hidden = true;
-});
+/** A camera setting that looks wrong for the data: shown with the errors, kept in status.warnings. */
+function reportWarning(text) {
+  const line = `camera settings: ${text}`;
+  status.warnings.push(line);
+  board.report(line, 'warning');
+  status.shownErrors = board.texts();
+  console.warn(`surfel-slam: ${line}`);
+}
+
+/** A new run or new settings: the messages about the old one no longer apply. */
+function clearMessages() {
+  status.error = null;
+  status.warnings = [];
+  board.clear();
+  status.shownErrors = [];
+}
 
 // ---- renderer, views, stats ------------------------------------------------------
 
@@ -330,15 +338,17 @@ const handlers = {
     status.sequence = msg.name;
     status.sequenceKind = msg.kind;
     status.frameCount = msg.frameCount;
-    status.error = null;
     status.errors = [];
-    ui.message.hidden = true;
+    clearMessages();
+    ui.sequenceInfo.classList.remove('failed');
     $('overlay-credit').hidden = msg.name !== 'tum_fr3_teddy_clip';
     clearMap();
     const { preset, ...overrides } = msg.config ?? {};
     settings.show(msg.preset, overrides);
     const gt = msg.groundTruth.length ? `, ground truth ${msg.groundTruth.length} poses` : ', no ground truth';
-    ui.sequenceInfo.textContent = `${msg.name} — ${msg.kind}, ${msg.frameCount} frames${gt}, camera ${msg.preset}`;
+    sequence.line = `${msg.name} — ${msg.kind}, ${msg.frameCount} frames${gt}, camera ${msg.preset}`;
+    ui.sequenceInfo.textContent = sequence.line;
+    for (const w of msg.warnings ?? []) reportWarning(w);
     setControls();
   },
 
@@ -346,6 +356,7 @@ const handlers = {
     const t0 = performance.now();
     status.flowTracks = msg.flow?.tracks ? msg.flow.tracks.length / 4 : 0;
     stats.onFrame(msg);
+    if (msg.result.settingsWarning) reportWarning(msg.result.settingsWarning);
     countRunFrame(msg);
     noteColourDecoder(msg);
     mirror.update(msg.surfels);
@@ -382,12 +393,13 @@ const handlers = {
     stats.onFailedFrame(msg);
     noteColourDecoder(msg);
     if (msg.input) views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || 5000, null, msg.input.colourPreview);
-    reportError(`frame ${msg.index + 1} skipped — ${msg.message}`);
+    reportError(`frame ${msg.index} skipped — ${msg.message}`);
     syncStatus();
   },
 
   [FromWorker.LOAD_ERROR](msg) {
     reportError(`cannot open the sequence: ${msg.message}${sequence ? ' (the current map is kept)' : ''}`);
+    openFailed(msg.name);
   },
 
   [FromWorker.CONFIG_ERROR](msg) {
@@ -409,6 +421,10 @@ const handlers = {
   },
 
   [FromWorker.RESET](msg) {
+    clearMessages();
+    if (sequence) ui.sequenceInfo.textContent = sequence.line;
+    ui.sequenceInfo.classList.remove('failed');
+    for (const w of msg.warnings ?? []) reportWarning(w);
     if (msg.config) setDisplayFrame(msg.config);
     status.failed = false;
     clearMap();
@@ -497,7 +513,13 @@ ui.viewMesh.addEventListener('change', () => {
   if (status.meshView) send({ type: ToWorker.VIEW_MESH });
 });
 
-$('show-flow').addEventListener('change', (e) => send({ type: ToWorker.FLOW, enabled: e.target.checked }));
+$('show-flow').addEventListener('change', (e) => {
+  send({ type: ToWorker.FLOW, enabled: e.target.checked });
+  if (!e.target.checked) {
+    views.hideFlow();
+    status.flowTracks = 0;
+  }
+});
 
 wireViewControls({ renderer, plots });
 
@@ -505,10 +527,18 @@ wireViewControls({ renderer, plots });
 
 const urlParams = () => new URLSearchParams(location.search);
 
+/** The sequence line after a failed open: says so, and what stays loaded. */
+function openFailed(name) {
+  const kept = sequence ? `; still loaded: ${sequence.name}` : '';
+  ui.sequenceInfo.textContent = `could not open ${name ?? 'the choice'} (see the message over the map)${kept}`;
+  ui.sequenceInfo.classList.add('failed');
+}
+
 function loadSequence(seq, autoplay) {
   loading = { name: seq.name, entries: seq.entries };
   pendingReload = null;
   ui.sequenceInfo.textContent = `reading ${seq.name} (${seq.entries.length} files)…`;
+  ui.sequenceInfo.classList.remove('failed');
   send({ type: ToWorker.LOAD, name: seq.name, entries: seq.entries, autoplay, options: settings.pageOptions() });
 }
 
@@ -517,7 +547,10 @@ setupSequenceInput({
   archiveInput: $('archive-input'),
   dropTarget: document.body,
   onSequence: (seq) => loadSequence(seq, true),
-  onError: (m) => reportError(m),
+  onError: (m) => {
+    reportError(m);
+    openFailed(null);
+  },
 });
 
 async function loadSample(autoplay) {
@@ -526,7 +559,7 @@ async function loadSample(autoplay) {
     loadSequence(seq, autoplay);
   } catch (e) {
     reportError(`cannot load the bundled sample: ${e.message}`);
-    ui.sequenceInfo.textContent = 'no sequence: open or drop a folder';
+    openFailed('the bundled sample');
   }
 }
 $('sample-button').addEventListener('click', () => loadSample(true));

@@ -15,8 +15,14 @@ export class CameraSettings {
     this.presets = [];
     this.sequencePreset = null; // the open sequence's preset: the base of a 'custom' config
     const apply = () => {
+      // An empty field is refused, not filled from a preset behind the user's back.
+      const empty = this.emptyFields();
+      if (empty.length) {
+        onError(`camera settings: ${empty.join(', ')} ${empty.length === 1 ? 'is' : 'are'} empty: type a value, or choose a preset to fill every field`);
+        return;
+      }
       const c = this.current();
-      if (![c.fx, c.fy, c.cx, c.cy, c.depthScale].every(Number.isFinite)) onError('intrinsics: fx, fy, cx, cy and depth scale must be numbers');
+      if (![c.fx, c.fy, c.cx, c.cy, c.depthScale].every(Number.isFinite)) onError('camera settings: fx, fy, cx, cy and depth scale must be numbers');
       else onApply(c);
     };
     el.preset.addEventListener('change', () => {
@@ -60,6 +66,15 @@ export class CameraSettings {
     el.cy.value = tidy(v.cy);
     el.depthScale.value = tidy(v.depthScale);
     if (v.depthMin !== undefined && v.depthMax !== undefined) this.views.setDepthRange(v.depthMin, Math.min(v.depthMax, 6));
+  }
+
+  /** Names of the intrinsics fields left empty (or holding no number). */
+  emptyFields() {
+    const el = this.el;
+    const fields = { fx: el.fx, fy: el.fy, cx: el.cx, cy: el.cy, 'depth scale': el.depthScale };
+    return Object.entries(fields)
+      .filter(([, f]) => f.value.trim() === '' || !Number.isFinite(Number(f.value)))
+      .map(([name]) => name);
   }
 
   /** The Slam config the fields make. */

@@ -88,7 +88,7 @@ class Chart {
     ctx.textAlign = 'left';
     ctx.fillText(this.unit, 2, top + plotH / 2 + 5);
     ctx.textAlign = 'right';
-    ctx.fillText(`frame ${n}`, w - 4, h);
+    ctx.fillText(`frame ${Math.max(0, n - 1)}`, w - 4, h); // frames are numbered from 0, as in the CLI
     ctx.textAlign = 'left';
     ctx.strokeStyle = '#3a4252';
     ctx.lineWidth = 1;
@@ -195,7 +195,7 @@ export class Plots {
     this.charts = {
       timing: canvases.timing ? new Chart(canvases.timing, 'ms per frame by stage', 'ms') : null,
       surfels: canvases.surfels ? new Chart(canvases.surfels, 'surfels in the map', '') : null,
-      error: canvases.error ? new Chart(canvases.error, 'error vs GT aligned at start', 'cm') : null,
+      error: canvases.error ? new Chart(canvases.error, 'drift since frame 0 (not ATE)', 'cm') : null,
     };
     this.visible = true;
     this.timer = null;

@@ -39,7 +39,7 @@ export const ToWorker = Object.freeze({
 export const FromWorker = Object.freeze({
   /** {module: 'threads'|'simd', threads, presets, notes, frameReader}: the module is loaded. */
   READY: 'ready',
-  /** {name, kind, preset, config, frameCount, groundTruth, fileCount}: a sequence was opened. */
+  /** {name, kind, preset, config, frameCount, groundTruth, fileCount, warnings}: a sequence was opened (warnings: camera settings that do not fit its layout). */
   SEQUENCE: 'sequence',
   /** {index, frameCount, timestamp, result, surfels, refresh, ate, timing, input, flow, done}: one frame processed. */
   FRAME: 'frame',
@@ -51,7 +51,7 @@ export const FromWorker = Object.freeze({
   CONFIG_ERROR: 'config-error',
   /** {playing, next, frameCount, done, surfels, failed}: playback state. */
   STATE: 'state',
-  /** {config?}: the map was emptied (reset, replay, new config, rebuilt after a failure). */
+  /** {config?, warnings?}: the map was emptied (reset, replay, new config, rebuilt after a failure); warnings: a new config's settings that do not fit the layout. */
   RESET: 'reset',
   /** {what: 'ply'|'trajectory'|'mesh-glb'|'mesh-ply'|'points-glb', bytes|text, name} or {what, unavailable: true} (the module has failed: the page uses its own copy; none for meshes) or {what, error}. */
   EXPORT: 'export',

@@ -135,7 +135,7 @@ export class Stats {
       [
         'relocalised',
         this.lastRelocalised
-          ? `${this.framesRelocalised} (last: frame ${this.lastRelocalised.frame + 1} at keyframe ${this.lastRelocalised.keyframe + 1})`
+          ? `${this.framesRelocalised} (last: frame ${this.lastRelocalised.frame}, placed by the keyframe of frame ${this.lastRelocalised.keyframe})`
           : `${this.framesRelocalised}`,
       ],
       [

@@ -78,9 +78,17 @@ export class InputViews {
       const colour = colourPreview ? this.drawPreview(colourPreview) : this.drawColour(colourBytes);
       const depth = depthPreview?.metres?.length === VIEW_W * VIEW_H ? this.drawDepthMetres(depthPreview.metres) : this.drawDepth(depthBytes, depthScale);
       await Promise.all([colour, depth]);
+      // The thumbnail without the tracks, to take them off when the overlay is switched off.
+      this.colourWithoutFlow = flow ? this.colourCtx.getImageData(0, 0, VIEW_W, VIEW_H) : null;
       if (flow) this.drawFlow(flow);
     }
     this.busy = false;
+  }
+
+  /** Takes the flow tracks off the colour thumbnail shown (the overlay was switched off while stopped). */
+  hideFlow() {
+    if (this.colourWithoutFlow) this.colourCtx.putImageData(this.colourWithoutFlow, 0, 0);
+    this.colourWithoutFlow = null;
   }
 
   // Lucas-Kanade tracks from the previous frame: a line per track, a dot at its end.
@@ -185,6 +193,7 @@ export class InputViews {
   }
 
   clear() {
+    this.colourWithoutFlow = null;
     for (const ctx of [this.colourCtx, this.depthCtx]) {
       ctx.fillStyle = '#111';
       ctx.fillRect(0, 0, VIEW_W, VIEW_H);

@@ -32,7 +32,7 @@ let moduleKind = null;
 let threads = 1;
 let slam = null;
 let config = null; // Slam config currently in use
-let seq = null; // { id, name, kind, source, frames, gtTum }
+let seq = null; // { id, name, kind, source, frames, gtTum, layoutPreset }
 let seqCounter = 0;
 let next = 0; // index of the next frame to process
 let playing = false;
@@ -152,6 +152,32 @@ function createSlam(newConfig) {
   restart();
 }
 
+/** Every settings warning of the current Slam (none when the module lacks the check). */
+function settingsWarnings() {
+  try {
+    return typeof slam?.settingsWarnings === 'function' ? slam.settingsWarnings() : [];
+  } catch (e) {
+    if (isModuleFailure(e)) throw e;
+    return [];
+  }
+}
+
+/**
+ * The config's settings against the layout's preset (`layoutPreset`, from
+ * parseSequence): warnings naming the setting (a preset of another dataset,
+ * a focal length of the other sign, a depth scale far off). The depth
+ * check's warning arrives with the first frame's report.
+ */
+function layoutWarnings(layoutPreset) {
+  if (!layoutPreset || typeof slam?.checkLayout !== 'function') return [];
+  try {
+    return slam.checkLayout(layoutPreset, config?.preset ?? undefined);
+  } catch (e) {
+    if (isModuleFailure(e)) throw e;
+    return [];
+  }
+}
+
 /** Back to frame 0 with an empty map (the Slam already is). */
 function restart() {
   next = 0;
@@ -222,7 +248,7 @@ async function load({ name, entries, autoplay, options }) {
   }
   const groundTruth = (parsed.groundTruth || []).map((row) => Array.from(row));
   // Slam.ate reads the ground truth as TUM text ('' when there is none).
-  seq = { id: ++seqCounter, name, kind: parsed.kind, source, frames: parsed.frames, gtTum: parsed.groundTruthTum || null };
+  seq = { id: ++seqCounter, name, kind: parsed.kind, source, frames: parsed.frames, gtTum: parsed.groundTruthTum || null, layoutPreset: preset };
   feed.setSequence(seq.id, entries, source, seq.frames);
   post({
     type: FromWorker.SEQUENCE,
@@ -233,6 +259,7 @@ async function load({ name, entries, autoplay, options }) {
     frameCount: seq.frames.length,
     groundTruth,
     fileCount: paths.length,
+    warnings: layoutWarnings(preset),
   });
   playing = !!autoplay;
   reportState();
@@ -420,7 +447,8 @@ async function resetMap() {
     slam.reset();
     restart();
   }
-  post({ type: FromWorker.RESET });
+  // The settings are the same: their warnings still apply to the new run.
+  post({ type: FromWorker.RESET, warnings: settingsWarnings() });
 }
 
 function play() {
@@ -493,7 +521,7 @@ self.onmessage = async (event) => {
           reportState();
           return;
         }
-        post({ type: FromWorker.RESET, config: msg.config });
+        post({ type: FromWorker.RESET, config: msg.config, warnings: layoutWarnings(seq?.layoutPreset) });
       });
       // New settings restart the sequence and play it (the frame loop's job
       // runs after the one above).

@@ -25,6 +25,13 @@ pub struct BenchArgs {
     tracking: TrackingArgs,
 }
 
+impl BenchArgs {
+    /// The camera options given.
+    pub(crate) fn camera(&self) -> &CameraOverrides {
+        &self.camera
+    }
+}
+
 /// Index into a sequence of `len` frames for step `i` of a ping-pong loop.
 fn ping_pong(i: usize, len: usize) -> usize {
     if len < 2 {

@@ -16,13 +16,13 @@ pub struct MeshArgs {
     /// radius and confidence used when present).
     map: PathBuf,
     /// Output mesh (.glb, .ply or .obj).
-    #[arg(long, short)]
+    #[arg(long, short, value_parser = crate::mesh_path)]
     output: PathBuf,
-    /// Voxel edge, metres.
-    #[arg(long, default_value_t = MeshConfig::default().voxel_size_m)]
+    /// Voxel edge, metres (0.001 to 1).
+    #[arg(long, default_value_t = MeshConfig::default().voxel_size_m, allow_negative_numbers = true, value_parser = crate::voxel_size)]
     voxel_size: f32,
     /// Use only surfels at least this confident (default: fusion's stable confidence).
-    #[arg(long, default_value_t = MeshConfig::default().min_confidence)]
+    #[arg(long, default_value_t = MeshConfig::default().min_confidence, allow_negative_numbers = true, value_parser = crate::finite)]
     min_confidence: f32,
 }
 

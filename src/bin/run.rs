@@ -17,7 +17,10 @@ use surfel_slam::mesh::MeshConfig;
 use surfel_slam::{FrameReport, Pipeline, SlamConfig, Verdict};
 
 use crate::mesh_file::{mesh_format, write_mesh_file};
-use crate::{config_for, describe, evaluate, positive, CameraOverrides, TrackingArgs, MAX_DT};
+use crate::{
+    config_for, describe, evaluate, mesh_path, positive, voxel_size, CameraOverrides, TrackingArgs,
+    MAX_DT,
+};
 
 /// Exit code of a run that finished with some frames skipped as unreadable.
 const EXIT_FRAMES_SKIPPED: u8 = 3;
@@ -59,11 +62,18 @@ pub struct RunArgs {
     #[arg(long, short)]
     quiet: bool,
     /// Write a triangle mesh of the confident surfels here (.glb, .ply or .obj).
-    #[arg(long)]
+    #[arg(long, value_parser = mesh_path)]
     mesh: Option<PathBuf>,
-    /// Voxel edge of the mesh, metres.
-    #[arg(long, default_value_t = MeshConfig::default().voxel_size_m)]
+    /// Voxel edge of the mesh, metres (0.001 to 1).
+    #[arg(long, default_value_t = MeshConfig::default().voxel_size_m, allow_negative_numbers = true, value_parser = voxel_size)]
     voxel_size: f32,
+}
+
+impl RunArgs {
+    /// The camera options given.
+    pub(crate) fn camera(&self) -> &CameraOverrides {
+        &self.camera
+    }
 }
 
 /// Runs `surfel-slam run`; returns the exit code (0, or
@@ -140,23 +150,45 @@ fn start_pipeline(
     args: &RunArgs,
 ) -> Result<Pipeline> {
     let mut config = config_for(sequence, &args.camera, &args.tracking)?;
-    let (width, height) = first_readable(source, frames, &config)?;
+    let (first, width, height) = first_readable(source, frames, &config)?;
     config.intrinsics.width = width;
     config.intrinsics.height = height;
-    Ok(Pipeline::new(config)?)
+    let mut slam = Pipeline::new(config)?;
+    check_settings(source, sequence, first, args, &mut slam);
+    Ok(slam)
 }
 
-/// The first frame that decodes, for the sequence's image size; the frames
-/// before it are named on stderr.
-fn first_readable(
+/// Warns (stderr) about camera settings that look wrong for the data: the
+/// preset and values against the folder's layout, the depth scale against
+/// the first readable frame's depth image.
+fn check_settings(
     source: &mut DatasetSource,
-    frames: &[&FrameEntry],
+    sequence: &Sequence,
+    first: &FrameEntry,
+    args: &RunArgs,
+    slam: &mut Pipeline,
+) {
+    let chosen = args.camera.preset.unwrap_or(sequence.preset);
+    slam.check_layout(sequence.preset, chosen);
+    if let Ok(depth_png) = source.read(&first.depth) {
+        slam.check_depth_png(&depth_png);
+    }
+    for warning in slam.settings_warnings() {
+        eprintln!("warning: camera settings: {warning}");
+    }
+}
+
+/// The first frame that decodes and its size (the sequence's image size);
+/// the frames before it are named on stderr.
+fn first_readable<'a>(
+    source: &mut DatasetSource,
+    frames: &[&'a FrameEntry],
     config: &SlamConfig,
-) -> Result<(usize, usize)> {
+) -> Result<(&'a FrameEntry, usize, usize)> {
     let mut last_error = None;
     for entry in frames {
         match source.read_frame(entry, &config.depth) {
-            Ok(f) => return Ok((f.width, f.height)),
+            Ok(f) => return Ok((entry, f.width, f.height)),
             Err(e) => {
                 eprintln!("frame {} unreadable: {e}", entry.index);
                 last_error = Some(e);
@@ -326,8 +358,12 @@ fn print_summary(
             Err(e) => format!("ATE n/a ({e})"),
         }
     };
+    let warnings = match slam.settings_warnings().len() {
+        0 => String::new(),
+        n => format!(", {n} camera-settings warning(s) (see above)"),
+    };
     println!(
-        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {failed} unreadable, {} loop closures ({} global), {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1})",
+        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {failed} unreadable, {} loop closures ({} global), {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1}){warnings}",
         args.dataset.display(),
         frames,
         counts.tracked,

@@ -1,11 +1,15 @@
 //! `surfel-slam`: run dense RGB-D SLAM over a dataset folder, or evaluate a trajectory.
 //!
-//! Exit codes: 0 success; 1 the run could not start or finish (unreadable
-//! folder, unknown layout, camera settings that do not fit the images, ...;
-//! the message names the file or setting); 2 bad command line (unknown
-//! option, tracker or preset, a number that is not finite or out of range;
-//! clap names the option); 3 the run finished but some frames were skipped
-//! as unreadable (each was named on stderr).
+//! Exit codes (the README's table): 0 success; 1 the run could not start or
+//! finish (unreadable folder, unknown layout, a setting that does not fit
+//! this data: a focal length implausible for the image size, a principal
+//! point outside it, a depth bound beyond the preset's other bound; the
+//! message names the file or setting); 2 bad command line, whatever the
+//! data: unknown command, option, tracker or preset, a number that is not a
+//! number, not finite or outside the option's range, `--depth-min` not
+//! below `--depth-max`, an output file extension of no known format. Exit 2
+//! is decided before any file is read; 3 the run finished but some frames
+//! were skipped as unreadable (each was named on stderr).
 
 mod bench;
 mod evaluate;
@@ -16,9 +20,11 @@ mod run;
 use anyhow::Result;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use surfel_slam::dataset::Sequence;
 use surfel_slam::fusion::FusionConfig;
+use surfel_slam::mesh::{MeshFormat, VOXEL_SIZE_RANGE_M};
 use surfel_slam::track::{TrackerConfig, TrackerMode};
 use surfel_slam::{CameraPreset, SensorNoise, SlamConfig};
 
@@ -89,7 +95,7 @@ pub(crate) struct TrackingArgs {
     #[arg(long, value_parser = noise_parser)]
     noise: Option<SensorNoise>,
     /// Experiments: smallest noise weight of a fused measurement.
-    #[arg(long, hide = true)]
+    #[arg(long, hide = true, allow_negative_numbers = true, value_parser = non_negative_f32)]
     min_noise_weight: Option<f32>,
 }
 
@@ -158,12 +164,63 @@ fn preset_parser() -> impl TypedValueParser<Value = CameraPreset> {
     })
 }
 
-/// A finite number (negative allowed: ICL-NUIM's fy is -480).
-fn finite(s: &str) -> Result<f32, String> {
+/// Exit code of a bad command line (clap's own).
+const EXIT_USAGE: u8 = 2;
+
+/// A finite number (negative allowed: a principal point may lie left of the image).
+pub(crate) fn finite(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v.is_finite() => Ok(v),
         Ok(v) => Err(format!("{v} is not a finite number")),
         Err(e) => Err(e.to_string()),
+    }
+}
+
+/// A focal length in pixels: finite, 1 <= |f| <= 1e6 (negative allowed:
+/// ICL-NUIM's fy is -480). Whether it is plausible for the image size is
+/// the camera check's, once the image is read.
+fn focal(s: &str) -> Result<f32, String> {
+    let v = finite(s)?;
+    if (1.0..=1e6).contains(&v.abs()) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{v} px: a focal length is 1 to 1e6 px (or -1e6 to -1)"
+        ))
+    }
+}
+
+/// A finite number > 0.
+fn positive_f32(s: &str) -> Result<f32, String> {
+    match finite(s)? {
+        v if v > 0.0 => Ok(v),
+        v => Err(format!("{v} is not a number > 0")),
+    }
+}
+
+/// A finite number >= 0.
+fn non_negative_f32(s: &str) -> Result<f32, String> {
+    match finite(s)? {
+        v if v >= 0.0 => Ok(v),
+        v => Err(format!("{v} is not a number >= 0")),
+    }
+}
+
+/// A mesh voxel edge, metres, within [`VOXEL_SIZE_RANGE_M`].
+pub(crate) fn voxel_size(s: &str) -> Result<f32, String> {
+    let (lo, hi) = VOXEL_SIZE_RANGE_M;
+    match finite(s)? {
+        v if (lo..=hi).contains(&v) => Ok(v),
+        v => Err(format!("{v} m: the voxel size is {lo} to {hi} m")),
+    }
+}
+
+/// An output mesh path whose extension names a format (.glb, .ply, .obj).
+pub(crate) fn mesh_path(s: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(s);
+    match MeshFormat::from_path(&path) {
+        Some(_) => Ok(path),
+        None => Err("the mesh file must end in .glb, .ply or .obj".to_owned()),
     }
 }
 
@@ -211,10 +268,10 @@ pub(crate) struct CameraOverrides {
     /// Camera preset [default: from the folder's layout].
     #[arg(long, value_parser = preset_parser())]
     preset: Option<CameraPreset>,
-    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+    #[arg(long, allow_negative_numbers = true, value_parser = focal,
         help = preset_help("Focal length x, pixels", |p| p.intrinsics().fx))]
     fx: Option<f32>,
-    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+    #[arg(long, allow_negative_numbers = true, value_parser = focal,
         help = preset_help("Focal length y, pixels (negative: image y axis points up)", |p| p.intrinsics().fy))]
     fy: Option<f32>,
     #[arg(long, allow_negative_numbers = true, value_parser = finite,
@@ -223,19 +280,43 @@ pub(crate) struct CameraOverrides {
     #[arg(long, allow_negative_numbers = true, value_parser = finite,
         help = preset_help("Principal point y, pixels", |p| p.intrinsics().cy))]
     cy: Option<f32>,
-    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+    #[arg(long, allow_negative_numbers = true, value_parser = positive_f32,
         help = preset_help("Raw depth units per metre", |p| p.depth_settings().scale))]
     depth_scale: Option<f32>,
-    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+    #[arg(long, allow_negative_numbers = true, value_parser = non_negative_f32,
         help = preset_help("Nearest valid depth, metres", |p| p.depth_settings().min_m))]
     depth_min: Option<f32>,
-    #[arg(long, allow_negative_numbers = true, value_parser = finite,
+    #[arg(long, allow_negative_numbers = true, value_parser = positive_f32,
         help = preset_help("Farthest valid depth, metres", |p| p.depth_settings().max_m))]
     depth_max: Option<f32>,
 }
 
+impl CameraOverrides {
+    /// What clap cannot judge option by option: `--depth-min` below
+    /// `--depth-max` when both are given.
+    fn usage_problem(&self) -> Option<String> {
+        match (self.depth_min, self.depth_max) {
+            (Some(lo), Some(hi)) if lo >= hi => {
+                Some(format!("--depth-min {lo} must be below --depth-max {hi}"))
+            }
+            _ => None,
+        }
+    }
+}
+
 fn main() -> ExitCode {
-    let result = match Cli::parse().command {
+    let cli = Cli::parse();
+    // Bad command lines exit 2 before any file is read.
+    let usage = match &cli.command {
+        Command::Run(args) => args.camera().usage_problem(),
+        Command::Bench(args) => args.camera().usage_problem(),
+        Command::Mesh(_) | Command::Eval(_) => None,
+    };
+    if let Some(problem) = usage {
+        eprintln!("error: {problem}\n\nFor more information, try '--help'.");
+        return ExitCode::from(EXIT_USAGE);
+    }
+    let result = match cli.command {
         Command::Run(args) => run::run(&args),
         Command::Bench(args) => bench::bench(&args).map(|()| 0),
         Command::Mesh(args) => mesh_file::mesh_file(&args).map(|()| 0),

@@ -118,7 +118,8 @@ pub enum DatasetKind {
     Tum,
     /// ICL-NUIM "frei_png": `associations.txt`, optional `*.gt.freiburg`.
     IclNuim,
-    /// Microsoft 7-Scenes: `seq-XX/frame-NNNNNN.{color.png,depth.png,pose.txt}`.
+    /// Microsoft 7-Scenes: `frame-NNNNNN.{color.png|color.jpg,depth.png,pose.txt}`,
+    /// in `seq-XX/` folders or flat.
     SevenScenes,
 }
 
@@ -298,7 +299,8 @@ pub fn detect_layout(file_names: &[String]) -> Result<Layout, DatasetError> {
     Err(DatasetError::UnknownLayout {
         hint: format!(
             "expected rgb.txt + depth.txt (TUM RGB-D), an associations .txt (ICL-NUIM) or \
-             seq-XX/frame-NNNNNN.color.png (7-Scenes); found {} file(s): {}",
+             frame-NNNNNN.color.png or .color.jpg beside frame-NNNNNN.depth.png (7-Scenes; \
+             in seq-XX/ folders or flat); found {} file(s): {}",
             names.len(),
             sample.join(", ")
         ),

@@ -13,6 +13,7 @@ impl Pipeline {
         depth: &[u8],
         timestamp: f64,
     ) -> Result<FrameReport, PipelineError> {
+        self.check_depth_png(depth);
         self.decode_and_push(timestamp, |frame, settings, scratch| {
             frame.decode_into(colour, depth, settings, scratch)
         })
@@ -30,6 +31,7 @@ impl Pipeline {
         depth: &[u8],
         timestamp: f64,
     ) -> Result<FrameReport, PipelineError> {
+        self.check_depth_png(depth);
         self.decode_and_push(timestamp, |frame, settings, scratch| {
             frame.decode_rgba_depth_png_into(width, height, colour, depth, settings, scratch)
         })
@@ -47,6 +49,9 @@ impl Pipeline {
         timestamp: f64,
     ) -> Result<FrameReport, PipelineError> {
         self.decoded_was_pushed = false;
+        if depth.len() == width * height {
+            self.check_depth_raw(depth);
+        }
         let frame = RgbdFrame::from_raw(width, height, colour, depth, &self.config.depth)?;
         self.push_frame(&frame, timestamp)
     }

@@ -14,9 +14,11 @@ mod config;
 mod input;
 mod recovery;
 mod report;
+mod settings_check;
 
 pub use config::{PipelineError, SlamConfig};
 pub use report::{FrameReport, StageTimings, Verdict, VerdictCounts};
+pub use settings_check::{depth_scale_warning, layout_warnings, SettingsCheck, SettingsWarning};
 
 use crate::clock::now_ms;
 use crate::features::SparseEstimator;
@@ -47,6 +49,8 @@ pub struct Pipeline {
     /// `decoded` is the frame of the last push, and that push succeeded.
     decoded_was_pushed: bool,
     scratch: DecodeScratch,
+    /// Camera settings that look wrong for the data (warnings, kept for the run).
+    settings_check: SettingsCheck,
     map: SurfelMap,
     prediction: Prediction,
     integrator: Integrator,
@@ -87,6 +91,7 @@ impl Pipeline {
             decoded: RgbdFrame::default(),
             decoded_was_pushed: false,
             scratch: DecodeScratch::default(),
+            settings_check: SettingsCheck::default(),
             recovery: recovery_tracker(&config.tracker),
             sparse: SparseEstimator::new(config.tracker.verify.features)
                 .map_err(|e| PipelineError::InvalidConfig(e.to_string()))?,
@@ -261,6 +266,7 @@ impl Pipeline {
         report.loop_registration = closure.registration;
         report.loop_global_looked = closure.global_looked;
         report.loop_global = closure.global;
+        report.settings_warning = self.settings_check.take_unreported();
         Ok(report)
     }
 
@@ -489,6 +495,7 @@ impl Pipeline {
             loop_registration: None,
             loop_global_looked: false,
             loop_global: None,
+            settings_warning: None,
             timings,
         }
     }

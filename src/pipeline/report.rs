@@ -1,5 +1,6 @@
 //! What the pipeline says about each frame: verdict, counts, timings.
 
+use super::SettingsWarning;
 use crate::fusion::FusionStats;
 use crate::loop_closure::global::GlobalClosure;
 use crate::loop_closure::local::Registration;
@@ -137,6 +138,9 @@ pub struct FrameReport {
     /// This frame matched a place seen long ago (the global check);
     /// `loop_closed` is set too when the map was bent by it.
     pub loop_global: Option<GlobalClosure>,
+    /// A camera-settings warning first reported with this frame (a depth
+    /// scale or layout check; all of them: `Pipeline::settings_warnings`).
+    pub settings_warning: Option<SettingsWarning>,
     /// Stage timings.
     pub timings: StageTimings,
 }

@@ -55,6 +55,8 @@ export interface FrameReport {
   globalLoopClosures: number;
   /** This frame closed a loop: every surfel and past pose may have moved (take the whole changed range and the trajectory again). */
   loopClosed: boolean;
+  /** A camera setting that looks wrong for the data, first found with this frame (e.g. a depth scale that puts most depths beyond the cut-off); all of them: Slam.settingsWarnings(). null when none. */
+  settingsWarning: string | null;
   /** Milliseconds per stage. */
   timings: { decode: number; preprocess: number; track: number; fuse: number; loop: number; predict: number; total: number };
 }
@@ -71,9 +73,13 @@ export interface SequenceFrame {
   missing: string | null;
 }
 
+/** The camera presets' names (as SlamConfig.preset takes them). */
+export type PresetName = 'tum-fr1' | 'tum-fr2' | 'tum-fr3' | 'icl-nuim' | '7-scenes';
+
 export interface Sequence {
   kind: 'tum' | 'icl-nuim' | '7-scenes';
-  preset: string;
+  /** The preset the layout implies: pass it as `new Slam({ preset: sequence.preset })`. */
+  preset: PresetName;
   frames: SequenceFrame[];
   /** [t, tx, ty, tz, qx, qy, qz, qw] rows, world_from_camera. */
   groundTruth: number[][];
@@ -214,6 +220,11 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
         ("loopClosures", r.loop_closures.into()),
         ("globalLoopClosures", r.global_loop_closures.into()),
         ("loopClosed", r.loop_closed.into()),
+        (
+            "settingsWarning",
+            r.settings_warning
+                .map_or(JsValue::NULL, |w| w.to_string().into()),
+        ),
         ("timings", timings.into()),
     ])
     .into()

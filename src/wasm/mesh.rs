@@ -112,6 +112,11 @@ fn mesh_to_bytes(
     })
 }
 
+/// The options object as a JS value (`undefined` when omitted or null).
+fn options_value(options: Option<Object>) -> JsValue {
+    options.map_or(JsValue::UNDEFINED, JsValue::from)
+}
+
 #[wasm_bindgen]
 impl Slam {
     /// The map as a triangle mesh file (`options`: see [`MeshOptions`];
@@ -120,11 +125,12 @@ impl Slam {
     #[wasm_bindgen(js_name = exportMesh)]
     pub fn export_mesh(
         &self,
-        #[wasm_bindgen(unchecked_param_type = "MeshOptions | undefined")] options: JsValue,
+        #[wasm_bindgen(unchecked_optional_param_type = "MeshOptions")] options: Option<Object>,
+        #[wasm_bindgen(unchecked_optional_param_type = "(fraction: number) => void")]
         progress: Option<Function>,
     ) -> Result<Vec<u8>, JsError> {
         let stable = self.pipeline().config().fusion.stable_confidence;
-        let (format, config) = parse_options(&options, stable)?;
+        let (format, config) = parse_options(&options_value(options), stable)?;
         mesh_to_bytes(self.pipeline().map(), format, &config, progress.as_ref())
     }
 
@@ -151,11 +157,13 @@ impl Slam {
 #[wasm_bindgen(js_name = meshSurfelPly)]
 pub fn mesh_surfel_ply(
     ply: &[u8],
-    #[wasm_bindgen(unchecked_param_type = "MeshOptions | undefined")] options: JsValue,
-    progress: Option<Function>,
+    #[wasm_bindgen(unchecked_optional_param_type = "MeshOptions")] options: Option<Object>,
+    #[wasm_bindgen(unchecked_optional_param_type = "(fraction: number) => void")] progress: Option<
+        Function,
+    >,
 ) -> Result<Vec<u8>, JsError> {
     let map = read_surfel_ply(ply)?;
     let stable = crate::fusion::FusionConfig::default().stable_confidence;
-    let (format, config) = parse_options(&options, stable)?;
+    let (format, config) = parse_options(&options_value(options), stable)?;
     mesh_to_bytes(&map, format, &config, progress.as_ref())
 }

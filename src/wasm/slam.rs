@@ -11,6 +11,7 @@ use wasm_bindgen::prelude::*;
 
 use super::config::slam_config_from_js;
 use super::convert::{ate_to_js, max_dt_from_js, report_to_js};
+use crate::camera::CameraPreset;
 use crate::dataset::trajectory::{format_tum, parse_tum};
 use crate::eval;
 use crate::mesh::write_surfel_ply;
@@ -58,6 +59,12 @@ fn f32_view(data: &[f32]) -> Float32Array {
     unsafe { Float32Array::view(data) }
 }
 
+/// A push's error naming the frame by its timestamp (the caller's, as in
+/// the trajectory), then the problem.
+fn frame_error(timestamp: f64, e: &dyn std::fmt::Display) -> JsError {
+    JsError::new(&format!("frame at timestamp {timestamp}: {e}"))
+}
+
 fn u8_view(data: &[u8]) -> Uint8Array {
     // SAFETY: see the comment above.
     unsafe { Uint8Array::view(data) }
@@ -81,7 +88,8 @@ impl Slam {
     }
 
     /// Decodes a colour image (PNG or JPEG) and a 16-bit depth PNG and
-    /// processes the frame. Throws (and changes nothing) on bad bytes.
+    /// processes the frame. Throws (and changes nothing) on bad bytes; the
+    /// message starts `frame at timestamp T:`.
     #[wasm_bindgen(js_name = pushFrame, unchecked_return_type = "FrameReport")]
     pub fn push_frame(
         &mut self,
@@ -89,7 +97,10 @@ impl Slam {
         depth: &[u8],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
-        let report = self.pipeline.push_png(colour, depth, timestamp)?;
+        let report = self
+            .pipeline
+            .push_png(colour, depth, timestamp)
+            .map_err(|e| frame_error(timestamp, &e))?;
         Ok(report_to_js(&report))
     }
 
@@ -108,6 +119,7 @@ impl Slam {
         #[wasm_bindgen(js_name = "depthPng")] depth_png: &[u8],
         timestamp: f64,
     ) -> Result<JsValue, JsError> {
+        // No frame prefix here: the page's worker names the files itself.
         let report = self.pipeline.push_rgba_depth_png(
             width as usize,
             height as usize,
@@ -267,6 +279,43 @@ impl Slam {
     /// build to rounding: its parallel sums vary in the last digits).
     pub fn reset(&mut self) {
         self.pipeline.reset();
+    }
+
+    /// Checks the settings against the dataset's layout: `layoutPreset` is
+    /// the preset `parseSequence` gave (`sequence.preset`), `chosenPreset`
+    /// the one the config was made from (default: the same). Returns the
+    /// warnings found (each names the setting); also in `settingsWarnings()`.
+    #[wasm_bindgen(js_name = checkLayout, unchecked_return_type = "string[]")]
+    pub fn check_layout(
+        &mut self,
+        #[wasm_bindgen(js_name = "layoutPreset", unchecked_param_type = "PresetName")]
+        layout_preset: &str,
+        #[wasm_bindgen(js_name = "chosenPreset", unchecked_optional_param_type = "PresetName")]
+        chosen_preset: Option<String>,
+    ) -> Result<Array, JsError> {
+        let named = |name: &str| {
+            CameraPreset::from_name(name)
+                .ok_or_else(|| JsError::new(&format!("unknown preset {name:?}")))
+        };
+        let detected = named(layout_preset)?;
+        let chosen = match chosen_preset {
+            Some(name) => named(&name)?,
+            None => detected,
+        };
+        let found = self.pipeline.check_layout(detected, chosen);
+        Ok(found.iter().map(|w| JsValue::from(w.to_string())).collect())
+    }
+
+    /// Every camera-settings warning found so far: the depth check on the
+    /// first frame and `checkLayout`'s (each names the setting).
+    #[wasm_bindgen(js_name = settingsWarnings, unchecked_return_type = "string[]")]
+    #[must_use]
+    pub fn settings_warnings(&self) -> Array {
+        self.pipeline
+            .settings_warnings()
+            .iter()
+            .map(|w| JsValue::from(w.to_string()))
+            .collect()
     }
 }
 

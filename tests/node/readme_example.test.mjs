@@ -6,7 +6,7 @@
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { execFileSync } from 'node:child_process';
-import { existsSync, mkdirSync, mkdtempSync, readFileSync, rmSync, symlinkSync, writeFileSync } from 'node:fs';
+import { cpSync, existsSync, mkdirSync, mkdtempSync, readFileSync, rmSync, symlinkSync, writeFileSync } from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import { PKG, ROOT } from './long_run.mjs';
@@ -43,6 +43,87 @@ test("the package README's Node example runs as written", { skip, timeout: 300_0
       .split('\n')
       .filter((l) => l.trim() && !l.startsWith('#'));
     assert.equal(poses.length, frames);
+  } finally {
+    rmSync(dir, { recursive: true, force: true });
+  }
+});
+
+/** A temporary folder where `node_modules/surfel-slam` is the built pkg/ and the example is `example.mjs`. */
+function exampleDir(example) {
+  const dir = mkdtempSync(path.join(os.tmpdir(), 'surfel-slam-readme-'));
+  mkdirSync(path.join(dir, 'node_modules/@types'), { recursive: true });
+  symlinkSync(PKG, path.join(dir, 'node_modules/surfel-slam'), 'dir');
+  const nodeTypes = path.join(ROOT, 'node_modules/@types/node');
+  if (existsSync(nodeTypes)) symlinkSync(nodeTypes, path.join(dir, 'node_modules/@types/node'), 'dir');
+  writeFileSync(path.join(dir, 'example.mjs'), example);
+  return dir;
+}
+
+const TSC = path.join(ROOT, 'node_modules/typescript/bin/tsc');
+
+test("the package README's Node example passes tsc --strict against the package's types", { skip, timeout: 120_000 }, (t) => {
+  if (!existsSync(TSC)) {
+    if (process.env.CI) assert.fail(`no TypeScript at ${TSC}: run npm ci`);
+    t.skip(`no TypeScript at ${TSC}: run npm ci`);
+    return;
+  }
+  const readme = readFileSync(path.join(ROOT, 'pkg-config/README.md'), 'utf8');
+  const dir = exampleDir(codeBlockAfter(readme, '## Node (>= 18)'));
+  try {
+    writeFileSync(
+      path.join(dir, 'tsconfig.json'),
+      JSON.stringify({
+        compilerOptions: {
+          strict: true,
+          allowJs: true,
+          checkJs: true,
+          noEmit: true,
+          target: 'es2022',
+          module: 'nodenext',
+          moduleResolution: 'nodenext',
+          types: ['node'],
+          skipLibCheck: false,
+        },
+        files: ['example.mjs'],
+      }),
+    );
+    let out = '';
+    try {
+      out = execFileSync(process.execPath, [TSC, '-p', 'tsconfig.json'], { cwd: dir, encoding: 'utf8' });
+    } catch (e) {
+      assert.fail(`tsc --strict rejects the README example:\n${e.stdout}${e.stderr}`);
+    }
+    t.diagnostic(`tsc --strict: clean${out ? `\n${out}` : ''}`);
+  } finally {
+    rmSync(dir, { recursive: true, force: true });
+  }
+});
+
+test("the package README's Node example skips a missing and a truncated frame, naming them", { skip, timeout: 300_000 }, (t) => {
+  const readme = readFileSync(path.join(ROOT, 'pkg-config/README.md'), 'utf8');
+  const dir = exampleDir(codeBlockAfter(readme, '## Node (>= 18)'));
+  const data = path.join(dir, 'damaged');
+  try {
+    cpSync(CLIP, data, { recursive: true });
+    const rows = (file) => readFileSync(path.join(data, file), 'utf8').split('\n').filter((l) => l.trim() && !l.startsWith('#'));
+    const colourGone = rows('rgb.txt')[3].split(/\s+/)[1];
+    const depthCut = rows('depth.txt')[6].split(/\s+/)[1];
+    rmSync(path.join(data, colourGone));
+    const bytes = readFileSync(path.join(data, depthCut));
+    writeFileSync(path.join(data, depthCut), bytes.subarray(0, bytes.length >> 1));
+    const frames = rows('rgb.txt').length;
+
+    const out = execFileSync(process.execPath, ['example.mjs', data], { cwd: dir, encoding: 'utf8' });
+    t.diagnostic(out.split('\n').filter((l) => /skipped|warning/.test(l)).join('\n'));
+    assert.match(out, new RegExp(`^frame 3 skipped: .*${path.basename(colourGone).replace('.', '\\.')}.*missing`, 'm'), out);
+    assert.match(
+      out,
+      new RegExp(`^frame 6 skipped \\(.*${path.basename(depthCut).replace('.', '\\.')}\\): frame at timestamp [0-9.]+: .*depth image could not be decoded`, 'm'),
+      out,
+    );
+    assert.match(out, new RegExp(`^${frames - 2} frames, \\d+ surfels, 2 skipped$`, 'm'), out);
+    assert.match(out, /^ATE 0\.0\d+ m$/m, out);
+    assert.doesNotMatch(out, /^warning:/m, 'the right preset: no settings warning');
   } finally {
     rmSync(dir, { recursive: true, force: true });
   }
