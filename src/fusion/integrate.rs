@@ -62,8 +62,9 @@ pub struct Integrator {
     chunks: Vec<ChunkUpdate>,
     /// Per surfel: the pixel it is a candidate of this frame, or `NO_PIXEL`.
     pixels: Vec<u32>,
-    /// Per pixel: whether it adds a new surfel.
-    adds: Vec<bool>,
+    /// Per image row: the new surfels its pixels add, with the confidence
+    /// each starts with, in pixel order.
+    adds: Vec<Vec<(Surfel, f32)>>,
     /// Radial confidence weight per column and per row (it is separable).
     weight_u: Vec<f32>,
     weight_v: Vec<f32>,
@@ -374,49 +375,46 @@ impl Integrator {
         // Which pixels add a surfel is decided in parallel (the map is only
         // read); the surfels are appended in pixel order.
         let map_ref = &*map;
-        self.adds.resize(view.k.pixel_count(), false);
+        self.adds.resize_with(view.k.height, Vec::new);
         stats.covered = self
             .adds
-            .par_chunks_mut(w)
+            .par_iter_mut()
             .enumerate()
             .map(|(v, row)| {
+                row.clear();
                 let mut covered = 0;
-                for (u, add) in row.iter_mut().enumerate() {
+                for u in 0..w {
                     let i = v * w + u;
-                    *add = level0.vertices[i].z > 0.0
-                        && level0.normals[i] != Vec3::ZERO
-                        && best[i].load(Ordering::Relaxed) == 0;
-                    if *add
-                        && covered_by_neighbour(
-                            best,
-                            map_ref,
-                            (u, v),
-                            (w, h),
-                            &measure.surfel(i),
-                            (cos_gate, config.depth_gate_m),
-                        )
+                    if level0.vertices[i].z <= 0.0
+                        || level0.normals[i] == Vec3::ZERO
+                        || best[i].load(Ordering::Relaxed) != 0
                     {
-                        *add = false;
+                        continue;
+                    }
+                    let m = measure.surfel(i);
+                    if covered_by_neighbour(
+                        best,
+                        map_ref,
+                        (u, v),
+                        (w, h),
+                        &m,
+                        (cos_gate, config.depth_gate_m),
+                    ) {
                         covered += 1;
+                    } else {
+                        row.push((m, measure.gain(i)));
                     }
                 }
                 covered
             })
             .sum();
-        for (i, _) in self.adds.iter().enumerate().filter(|(_, &add)| add) {
+        // Appended in pixel order: the same map on any thread count.
+        for (m, gain) in self.adds.iter().flatten() {
             if map.len() >= config.max_surfels {
                 stats.skipped += 1;
                 continue;
             }
-            let m = measure.surfel(i);
-            map.push(
-                m.position,
-                m.normal,
-                m.colour,
-                m.radius,
-                measure.gain(i),
-                view.frame,
-            );
+            map.push(m.position, m.normal, m.colour, m.radius, *gain, view.frame);
             stats.added += 1;
         }
     }
