@@ -391,18 +391,22 @@ impl Integrator {
                     {
                         continue;
                     }
-                    let m = measure.surfel(i);
+                    // Only the position and normal are needed to test
+                    // the neighbours; most such pixels are covered.
+                    let world = &view.world_from_camera;
+                    let position = world.point(level0.vertices[i]);
+                    let normal = world.vector(level0.normals[i]);
                     if covered_by_neighbour(
                         best,
                         map_ref,
                         (u, v),
                         (w, h),
-                        &m,
+                        (position, normal),
                         (cos_gate, config.depth_gate_m),
                     ) {
                         covered += 1;
                     } else {
-                        row.push((m, measure.gain(i)));
+                        row.push((measure.surfel(i), measure.gain(i)));
                     }
                 }
                 covered
@@ -536,12 +540,13 @@ pub const ABSORBED: f32 = -1.0;
 /// Most of the adds the normal gate let through came from noisy normals
 /// (teddy's fur) on a surface already mapped. The measurement is not merged
 /// into the neighbour, which would smear it along the surface.
+/// `(position, normal)`: the measurement at pixel `(u, v)`, world frame, metres.
 fn covered_by_neighbour(
     best: &[AtomicU64],
     map: &SurfelMap,
     (u, v): (usize, usize),
     (w, h): (usize, usize),
-    m: &Surfel,
+    (position, normal): (Vec3, Vec3),
     (cos_gate, depth_gate): (f32, f32),
 ) -> bool {
     (v.saturating_sub(1)..(v + 2).min(h)).any(|y| {
@@ -550,12 +555,12 @@ fn covered_by_neighbour(
             let Some(j) = (key as usize).checked_sub(1) else {
                 return false;
             };
-            let d = m.position - map.positions[j];
+            let d = position - map.positions[j];
             let along = d.dot(map.normals[j]);
             let r = map.radii[j];
             d.length_squared() - along * along < r * r
                 && (along.abs() < r
-                    || (along.abs() < depth_gate && map.normals[j].dot(m.normal) >= cos_gate))
+                    || (along.abs() < depth_gate && map.normals[j].dot(normal) >= cos_gate))
         })
     })
 }
