@@ -14,6 +14,7 @@
 use super::chunk_bounds::{ChunkBounds, BLOCK, BLOCKS_PER_CHUNK, CHUNK};
 use super::depth_tiles::DepthTiles;
 use super::frustum::visible_blocks;
+use super::index_map::raise_to;
 use super::noise_weights::noise_weights_into;
 use super::surfel_map::{ChunkMut, Surfel};
 use super::{FusionConfig, SurfelMap};
@@ -263,7 +264,7 @@ impl Integrator {
                         // Confidences are positive, so their bit patterns order like the values.
                         let key = (u64::from(map.confidences[j].max(0.0).to_bits()) << 32)
                             | (j as u64 + 1);
-                        best[pixel].fetch_max(key, Ordering::Relaxed);
+                        raise_to(&best[pixel], key);
                     }
                 }
             });
