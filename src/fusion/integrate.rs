@@ -63,9 +63,9 @@ pub struct Integrator {
     chunks: Vec<ChunkUpdate>,
     /// Per surfel: the pixel it is a candidate of this frame, or `NO_PIXEL`.
     pixels: Vec<u32>,
-    /// Per image row: the new surfels its pixels add, with the confidence
-    /// each starts with, in pixel order.
-    adds: Vec<Vec<(Surfel, f32)>>,
+    /// Per image row: the pixels (row-major indices) that add a new
+    /// surfel, in pixel order.
+    adds: Vec<Vec<u32>>,
     /// Radial confidence weight per column and per row (it is separable).
     weight_u: Vec<f32>,
     weight_v: Vec<f32>,
@@ -407,19 +407,28 @@ impl Integrator {
                     ) {
                         covered += 1;
                     } else {
-                        row.push((measure.surfel(i), measure.gain(i)));
+                        row.push(i as u32);
                     }
                 }
                 covered
             })
             .sum();
         // Appended in pixel order: the same map on any thread count.
-        for (m, gain) in self.adds.iter().flatten() {
+        for &i in self.adds.iter().flatten() {
             if map.len() >= config.max_surfels {
                 stats.skipped += 1;
                 continue;
             }
-            map.push(m.position, m.normal, m.colour, m.radius, *gain, view.frame);
+            let i = i as usize;
+            let m = measure.surfel(i);
+            map.push(
+                m.position,
+                m.normal,
+                m.colour,
+                m.radius,
+                measure.gain(i),
+                view.frame,
+            );
             stats.added += 1;
         }
     }
