@@ -79,7 +79,7 @@ impl IndexMap {
             if surface > 0.0 && z <= surface + band_m {
                 // Confidences are positive, so their bit patterns order like the values.
                 let key = (u64::from(map.confidences[i].max(0.0).to_bits()) << 32) | (i as u64 + 1);
-                chosen[cell].fetch_max(key, Ordering::Relaxed);
+                raise_to(&chosen[cell], key);
             }
         });
     }
@@ -93,9 +93,40 @@ impl IndexMap {
     }
 }
 
+/// Raises `cell` to `key` if `key` is larger: an atomic maximum that
+/// skips the locked read-modify-write (a compare-exchange loop on x86)
+/// when a plain load already shows a key at least as large, as it does for
+/// most candidates of a pixel seen before. The maximum does not depend on
+/// the order the candidates arrive in.
+#[inline]
+pub(crate) fn raise_to(cell: &AtomicU64, key: u64) {
+    if cell.load(Ordering::Relaxed) < key {
+        cell.fetch_max(key, Ordering::Relaxed);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn raise_to_keeps_the_largest_key_whatever_the_order() {
+        let keys: Vec<u64> = (0..1000u64).map(|i| (i * 7919) % 1009).collect();
+        let largest = keys.iter().copied().max().unwrap_or(0);
+        for reversed in [false, true] {
+            let cell = AtomicU64::new(0);
+            let mut order = keys.clone();
+            if reversed {
+                order.reverse();
+            }
+            order.par_iter().for_each(|&k| raise_to(&cell, k));
+            assert_eq!(cell.load(Ordering::Relaxed), largest);
+        }
+        // A smaller key never lowers the cell.
+        let cell = AtomicU64::new(50);
+        raise_to(&cell, 10);
+        assert_eq!(cell.load(Ordering::Relaxed), 50);
+    }
 
     #[test]
     fn each_measured_pixel_shows_its_most_confident_surfel_not_hidden_by_the_measurement() {

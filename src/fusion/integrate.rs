@@ -14,6 +14,7 @@
 use super::chunk_bounds::{ChunkBounds, BLOCK, BLOCKS_PER_CHUNK, CHUNK};
 use super::depth_tiles::DepthTiles;
 use super::frustum::visible_blocks;
+use super::index_map::raise_to;
 use super::noise_weights::noise_weights_into;
 use super::surfel_map::{ChunkMut, Surfel};
 use super::{FusionConfig, SurfelMap};
@@ -62,8 +63,9 @@ pub struct Integrator {
     chunks: Vec<ChunkUpdate>,
     /// Per surfel: the pixel it is a candidate of this frame, or `NO_PIXEL`.
     pixels: Vec<u32>,
-    /// Per pixel: whether it adds a new surfel.
-    adds: Vec<bool>,
+    /// Per image row: the pixels (row-major indices) that add a new
+    /// surfel, in pixel order.
+    adds: Vec<Vec<u32>>,
     /// Radial confidence weight per column and per row (it is separable).
     weight_u: Vec<f32>,
     weight_v: Vec<f32>,
@@ -262,7 +264,7 @@ impl Integrator {
                         // Confidences are positive, so their bit patterns order like the values.
                         let key = (u64::from(map.confidences[j].max(0.0).to_bits()) << 32)
                             | (j as u64 + 1);
-                        best[pixel].fetch_max(key, Ordering::Relaxed);
+                        raise_to(&best[pixel], key);
                     }
                 }
             });
@@ -374,40 +376,50 @@ impl Integrator {
         // Which pixels add a surfel is decided in parallel (the map is only
         // read); the surfels are appended in pixel order.
         let map_ref = &*map;
-        self.adds.resize(view.k.pixel_count(), false);
+        self.adds.resize_with(view.k.height, Vec::new);
         stats.covered = self
             .adds
-            .par_chunks_mut(w)
+            .par_iter_mut()
             .enumerate()
             .map(|(v, row)| {
+                row.clear();
                 let mut covered = 0;
-                for (u, add) in row.iter_mut().enumerate() {
+                for u in 0..w {
                     let i = v * w + u;
-                    *add = level0.vertices[i].z > 0.0
-                        && level0.normals[i] != Vec3::ZERO
-                        && best[i].load(Ordering::Relaxed) == 0;
-                    if *add
-                        && covered_by_neighbour(
-                            best,
-                            map_ref,
-                            (u, v),
-                            (w, h),
-                            &measure.surfel(i),
-                            (cos_gate, config.depth_gate_m),
-                        )
+                    if level0.vertices[i].z <= 0.0
+                        || level0.normals[i] == Vec3::ZERO
+                        || best[i].load(Ordering::Relaxed) != 0
                     {
-                        *add = false;
+                        continue;
+                    }
+                    // Only the position and normal are needed to test
+                    // the neighbours; most such pixels are covered.
+                    let world = &view.world_from_camera;
+                    let position = world.point(level0.vertices[i]);
+                    let normal = world.vector(level0.normals[i]);
+                    if covered_by_neighbour(
+                        best,
+                        map_ref,
+                        (u, v),
+                        (w, h),
+                        (position, normal),
+                        (cos_gate, config.depth_gate_m),
+                    ) {
                         covered += 1;
+                    } else {
+                        row.push(i as u32);
                     }
                 }
                 covered
             })
             .sum();
-        for (i, _) in self.adds.iter().enumerate().filter(|(_, &add)| add) {
+        // Appended in pixel order: the same map on any thread count.
+        for &i in self.adds.iter().flatten() {
             if map.len() >= config.max_surfels {
                 stats.skipped += 1;
                 continue;
             }
+            let i = i as usize;
             let m = measure.surfel(i);
             map.push(
                 m.position,
@@ -538,12 +550,13 @@ pub const ABSORBED: f32 = -1.0;
 /// Most of the adds the normal gate let through came from noisy normals
 /// (teddy's fur) on a surface already mapped. The measurement is not merged
 /// into the neighbour, which would smear it along the surface.
+/// `(position, normal)`: the measurement at pixel `(u, v)`, world frame, metres.
 fn covered_by_neighbour(
     best: &[AtomicU64],
     map: &SurfelMap,
     (u, v): (usize, usize),
     (w, h): (usize, usize),
-    m: &Surfel,
+    (position, normal): (Vec3, Vec3),
     (cos_gate, depth_gate): (f32, f32),
 ) -> bool {
     (v.saturating_sub(1)..(v + 2).min(h)).any(|y| {
@@ -552,12 +565,12 @@ fn covered_by_neighbour(
             let Some(j) = (key as usize).checked_sub(1) else {
                 return false;
             };
-            let d = m.position - map.positions[j];
+            let d = position - map.positions[j];
             let along = d.dot(map.normals[j]);
             let r = map.radii[j];
             d.length_squared() - along * along < r * r
                 && (along.abs() < r
-                    || (along.abs() < depth_gate && map.normals[j].dot(m.normal) >= cos_gate))
+                    || (along.abs() < depth_gate && map.normals[j].dot(normal) >= cos_gate))
         })
     })
 }
