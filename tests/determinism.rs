@@ -135,7 +135,7 @@ fn vec3_bits(v: &glam::Vec3) -> [u32; 3] {
 fn report_text(r: &FrameReport) -> String {
     let timeless = FrameReport {
         timings: StageTimings::default(),
-        ..r.clone()
+        ..*r
     };
     format!("{timeless:?}")
 }
