@@ -215,6 +215,56 @@ fn synthetic_sequence_tracks_and_matches_native() {
     );
 }
 
+/// Past the active window (the loop stage at work): the same poses as native.
+/// Ignored: it fails (issue #37, open). Measured before the rebase onto
+/// 3529218: 3.68 mm / 6.2e-4 rad apart, not bit-identical (the 20 clean
+/// frames of `synthetic_sequence_tracks_and_matches_native` differ by
+/// 3.8e-7 m); whether the noisy frames themselves differ (the synthetic
+/// noise through wasm's libm) or the pipeline's f32 math (libm, SIMD
+/// lanes) is not yet known. Run with `-- --include-ignored window`.
+#[wasm_bindgen_test]
+#[ignore]
+fn window_sequence_matches_native() {
+    let (config, frames, _) = window_sequence();
+    let o = config_object(&config);
+    let _ = Reflect::set(
+        &o,
+        &"activeWindowFrames".into(),
+        &f64::from(WINDOW_FRAMES).into(),
+    );
+    let mut slam = Slam::new(o).expect("valid config");
+    assert_eq!(
+        slam.pipeline().config(),
+        &config,
+        "JS config maps to the native one"
+    );
+    for f in &frames {
+        slam.push_raw(
+            f.width as u32,
+            f.height as u32,
+            &f.rgba,
+            &f.depth,
+            f.timestamp,
+        )
+        .map_err(message)
+        .expect("frame accepted");
+    }
+    let trajectory = trajectory_of(&slam);
+    if let Ok(reference) =
+        read_reference(read_text(&reference_path("window")), &source_fingerprint())
+    {
+        console_log!(
+            "window: wasm and native poses are {}",
+            if same_bits(&trajectory, &reference) {
+                "bit-identical"
+            } else {
+                "not bit-identical"
+            }
+        );
+    }
+    check_parity("window", &trajectory);
+}
+
 #[wasm_bindgen_test]
 fn real_frames_track_and_match_native() {
     let dir = data_dir(REAL_SEQUENCE);

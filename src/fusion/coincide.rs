@@ -93,7 +93,9 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
             found
         })
         .collect();
-    pairs.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.2.total_cmp(&b.2)));
+    // The old surfel's index breaks ties of distance: the pair kept never
+    // depends on the order the search found them in.
+    pairs.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.2.total_cmp(&b.2)).then(a.1.cmp(&b.1)));
     pairs.dedup_by_key(|p| p.0);
     let mut merged = 0;
     for (j, b, _) in pairs {

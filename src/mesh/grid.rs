@@ -174,9 +174,11 @@ impl Grid {
         let block_m = config.voxel_size_m * B as f32;
         self.index.clear();
         self.keys.clear();
-        for &(start, end) in self.buckets.values() {
+        // Buckets in key order (not the hash map's): where `max_blocks` stops
+        // the count, and so the error, is the same on every run.
+        for bucket in self.sorted.chunk_by(|a, b| a.0 == b.0) {
             let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-            for &(_, i) in &self.sorted[start as usize..end as usize] {
+            for &(_, i) in bucket {
                 let p = map.positions()[i as usize];
                 lo = lo.min(p);
                 hi = hi.max(p);

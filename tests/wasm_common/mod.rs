@@ -164,6 +164,62 @@ pub fn synthetic_sequence() -> (SlamConfig, Vec<RawFrame>, Vec<(f64, DAffine3)>)
     (config, frames, ground_truth)
 }
 
+/// Frames out along the loop path in [`window_sequence`] (then as many back).
+pub const WINDOW_OUT_FRAMES: usize = 40;
+/// Active window of [`window_sequence`], frames: the way back meets views
+/// last seen longer ago than this (the loop stage registers the inactive
+/// model against the active one).
+pub const WINDOW_FRAMES: u32 = 10;
+
+/// A sequence past the active window: the synthetic loop path
+/// (`synthetic::loop_pose`, 240 frames a turn) out [`WINDOW_OUT_FRAMES`]
+/// frames and back to its start, under Kinect-like noise, 320x240, with a
+/// [`WINDOW_FRAMES`]-frame active window: config, frames, ground truth
+/// (`world_from_camera`, in the first camera's frame).
+pub fn window_sequence() -> (SlamConfig, Vec<RawFrame>, Vec<(f64, DAffine3)>) {
+    let intrinsics = synthetic::default_intrinsics().half();
+    let mut config = SlamConfig::from_preset(surfel_slam::CameraPreset::TumFr3);
+    config.intrinsics = intrinsics;
+    config.depth = synthetic::depth_settings();
+    config.fusion.active_window_frames = WINDOW_FRAMES;
+    let scene = synthetic::Scene::room();
+    let noise = synthetic::NoiseModel::kinect();
+    let origin = synthetic::loop_pose(0, 240).inverse();
+    let path = (0..WINDOW_OUT_FRAMES).chain((0..WINDOW_OUT_FRAMES).rev());
+    let mut frames = Vec::new();
+    let mut ground_truth = Vec::new();
+    for (i, j) in path.enumerate() {
+        let timestamp = i as f64 / 30.0;
+        let pose = synthetic::loop_pose(j, 240);
+        let frame = synthetic::render(&scene, &intrinsics, &pose, &noise, i as u64);
+        let rgba = frame
+            .rgb
+            .chunks_exact(3)
+            .flat_map(|p| [p[0], p[1], p[2], 255])
+            .collect();
+        frames.push(RawFrame {
+            timestamp,
+            width: frame.width,
+            height: frame.height,
+            rgba,
+            depth: frame.depth_raw,
+        });
+        ground_truth.push((timestamp, origin * pose));
+    }
+    (config, frames, ground_truth)
+}
+
+/// Whether two trajectories hold the same bits (timestamps and poses).
+#[must_use]
+pub fn same_bits(a: &[(f64, DAffine3)], b: &[(f64, DAffine3)]) -> bool {
+    let bits = |(t, p): &(f64, DAffine3)| {
+        let mut v = vec![t.to_bits()];
+        v.extend(p.to_cols_array().map(f64::to_bits));
+        v
+    };
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| bits(x) == bits(y))
+}
+
 /// Largest translation (m) and rotation (rad) difference between two
 /// trajectories of equal length and timestamps.
 pub fn max_difference(a: &[(f64, DAffine3)], b: &[(f64, DAffine3)]) -> Result<(f64, f64), String> {

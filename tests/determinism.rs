@@ -1,0 +1,325 @@
+//! Same input, same output (issue #37): a run's trajectory and map do not
+//! depend on the number of threads, on work-stealing timing or on machine
+//! load. One synthetic sequence that works every stage (tracking, fusion,
+//! cleanup, loss and relocalisation, local and global loop checks against
+//! the inactive model, deformation, copies merged) is played in rayon pools
+//! of 1, 2 and 4 threads, then five times in a row while other threads keep
+//! every core busy; every run must give the same bits.
+//!
+//! `cargo test --release --test determinism -- --nocapture` prints what the
+//! sequence exercised.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
+
+mod common;
+
+use common::synthetic_config;
+use glam::DAffine3;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use surfel_slam::synthetic::{self, loop_pose, NoiseModel, Scene};
+use surfel_slam::{FrameReport, Pipeline, RgbdFrame, SlamConfig, StageTimings, Verdict};
+
+/// Frames per turn of the loop path (2.1 cm and 1.5 degrees a frame).
+const PER_LOOP: usize = 240;
+/// Frames played forwards, then backwards to frame 0.
+const OUT: usize = 50;
+/// Frames of the way out taken with a focal length 3 % shorter than the
+/// one the pipeline is given: a distorted stretch, the path drifts.
+const DISTORTED: std::ops::Range<usize> = 10..40;
+/// Frames of noise after the return (the camera covered): lost.
+const COVERED: usize = 2;
+/// Where the camera then reappears on its path (relocalised), and how
+/// many frames it walks on from there.
+const REAPPEARS: (usize, usize) = (25, 6);
+
+/// The test's settings: 320x240, a 30-frame active window (the return
+/// meets an inactive model), global looks every 5 frames at keyframes at
+/// least 30 frames old, copies merged 20 frames after they are made.
+fn config() -> SlamConfig {
+    let mut config = synthetic_config(synthetic::default_intrinsics().half());
+    config.fusion.active_window_frames = 30;
+    config.fusion.merge_copies_after_frames = 20;
+    let g = &mut config.loop_closure.global;
+    g.enabled = true;
+    g.min_age_frames = 30;
+    g.every_frames = 5;
+    g.cooldown_frames = 30;
+    config
+}
+
+/// A frame of noise: random colour and random depth in 0.5..4.5 m.
+fn covered(config: &SlamConfig, seed: u64) -> RgbdFrame {
+    let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let n = config.intrinsics.pixel_count();
+    RgbdFrame {
+        width: config.intrinsics.width,
+        height: config.intrinsics.height,
+        rgb: (0..3 * n).map(|_| (next() >> 56) as u8).collect(),
+        depth_m: (0..n)
+            .map(|_| 0.5 + 4.0 * (next() >> 40) as f32 / (1u64 << 24) as f32)
+            .collect(),
+    }
+}
+
+/// The sequence under Kinect-like noise: the loop path out to frame
+/// [`OUT`] (with the [`DISTORTED`] stretch) and back to frame 0 (views
+/// last seen more than the active window ago), frames of noise, then
+/// [`REAPPEARS`].
+fn frames(config: &SlamConfig) -> Vec<RgbdFrame> {
+    let scene = Scene::room();
+    let views = (0..OUT)
+        .chain((0..OUT).rev())
+        .map(Some)
+        .chain(std::iter::repeat_n(None, COVERED))
+        .chain((REAPPEARS.0..REAPPEARS.0 + REAPPEARS.1).map(Some));
+    views
+        .enumerate()
+        .map(|(i, view)| {
+            let Some(j) = view else {
+                return covered(config, i as u64);
+            };
+            let mut k = config.intrinsics;
+            if i < OUT && DISTORTED.contains(&j) {
+                k.fx /= 1.03;
+                k.fy /= 1.03;
+            }
+            synthetic::render(
+                &scene,
+                &k,
+                &loop_pose(j, PER_LOOP),
+                &NoiseModel::kinect(),
+                i as u64,
+            )
+            .to_frame(&config.depth)
+            .expect("synthetic frame")
+        })
+        .collect()
+}
+
+/// Everything a run leaves behind, as bits: both trajectories, every
+/// surfel array of the map, and what each frame reported (timings aside).
+#[derive(PartialEq, Eq)]
+struct Outcome {
+    trajectory: Vec<[u64; 13]>,
+    online_trajectory: Vec<[u64; 13]>,
+    positions: Vec<[u32; 3]>,
+    normals: Vec<[u32; 3]>,
+    colours: Vec<[u8; 4]>,
+    radii: Vec<u32>,
+    confidences: Vec<u32>,
+    first_seen: Vec<u32>,
+    last_seen: Vec<u32>,
+    reports: Vec<String>,
+}
+
+fn pose_bits((t, pose): &(f64, DAffine3)) -> [u64; 13] {
+    let mut out = [t.to_bits(); 13];
+    for (o, v) in out[1..].iter_mut().zip(pose.to_cols_array()) {
+        *o = v.to_bits();
+    }
+    out
+}
+
+fn vec3_bits(v: &glam::Vec3) -> [u32; 3] {
+    v.to_array().map(f32::to_bits)
+}
+
+/// A frame's report without its timings (`Debug` prints floats exactly).
+fn report_text(r: &FrameReport) -> String {
+    let timeless = FrameReport {
+        timings: StageTimings::default(),
+        ..*r
+    };
+    format!("{timeless:?}")
+}
+
+/// What a run went through (counted from its reports).
+#[derive(Debug, Default)]
+struct Coverage {
+    lost: usize,
+    relocalised: usize,
+    registrations: usize,
+    closures: u32,
+    global_looks: usize,
+    absorbed: usize,
+}
+
+impl Coverage {
+    fn of(reports: &[FrameReport]) -> Self {
+        let mut c = Self::default();
+        for r in reports {
+            c.lost += usize::from(matches!(r.verdict, Verdict::Lost(_)));
+            c.relocalised += usize::from(r.checks.relocalised_from.is_some());
+            c.registrations += usize::from(r.loop_registration.is_some());
+            c.global_looks += usize::from(r.loop_global_looked);
+            c.absorbed += r.fusion.absorbed;
+        }
+        c.closures = reports.last().map_or(0, |r| r.loop_closures);
+        c
+    }
+}
+
+fn play(config: &SlamConfig, frames: &[RgbdFrame]) -> (Outcome, Coverage) {
+    let mut slam = Pipeline::new(config.clone()).expect("valid config");
+    let reports: Vec<FrameReport> = frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| slam.push_frame(f, i as f64).expect("frame accepted"))
+        .collect();
+    let map = slam.map();
+    let outcome = Outcome {
+        trajectory: slam.trajectory().iter().map(pose_bits).collect(),
+        online_trajectory: slam.online_trajectory().iter().map(pose_bits).collect(),
+        positions: map.positions().iter().map(vec3_bits).collect(),
+        normals: map.normals().iter().map(vec3_bits).collect(),
+        colours: map.colours().to_vec(),
+        radii: map.radii().iter().map(|r| r.to_bits()).collect(),
+        confidences: map.confidences().iter().map(|c| c.to_bits()).collect(),
+        first_seen: map.first_seen().to_vec(),
+        last_seen: map.last_seen().to_vec(),
+        reports: reports.iter().map(report_text).collect(),
+    };
+    (outcome, Coverage::of(&reports))
+}
+
+fn in_pool<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a rayon pool")
+        .install(f)
+}
+
+/// Where two lists first differ, if they do.
+fn first_difference<T: PartialEq + std::fmt::Debug>(
+    name: &str,
+    a: &[T],
+    b: &[T],
+) -> Option<String> {
+    if a.len() != b.len() {
+        return Some(format!("{name}: {} vs {} entries", a.len(), b.len()));
+    }
+    let i = a.iter().zip(b).position(|(x, y)| x != y)?;
+    let (x, y) = (format!("{:?}", a[i]), format!("{:?}", b[i]));
+    // Where the two texts part, with some context before.
+    let at = x.bytes().zip(y.bytes()).take_while(|(p, q)| p == q).count();
+    let from = x[..at].char_indices().rev().nth(60).map_or(0, |(c, _)| c);
+    let shown = |t: &str| {
+        t.get(from..)
+            .unwrap_or(t)
+            .chars()
+            .take(160)
+            .collect::<String>()
+    };
+    Some(format!("{name}[{i}]: ...{} vs ...{}", shown(&x), shown(&y)))
+}
+
+/// Every difference between two outcomes, one line each (empty: the same bits).
+fn differences(a: &Outcome, b: &Outcome) -> Vec<String> {
+    [
+        first_difference("reports", &a.reports, &b.reports),
+        first_difference("trajectory", &a.trajectory, &b.trajectory),
+        first_difference(
+            "online trajectory",
+            &a.online_trajectory,
+            &b.online_trajectory,
+        ),
+        first_difference("positions", &a.positions, &b.positions),
+        first_difference("normals", &a.normals, &b.normals),
+        first_difference("colours", &a.colours, &b.colours),
+        first_difference("radii", &a.radii, &b.radii),
+        first_difference("confidences", &a.confidences, &b.confidences),
+        first_difference("first_seen", &a.first_seen, &b.first_seen),
+        first_difference("last_seen", &a.last_seen, &b.last_seen),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
+}
+
+fn assert_same(what: &str, reference: &Outcome, other: &Outcome) {
+    let diffs = differences(reference, other);
+    assert!(
+        diffs.is_empty(),
+        "{what} differs:\n  {}",
+        diffs.join("\n  ")
+    );
+}
+
+/// The sequence must reach every stage whose order of work could differ.
+fn check_coverage(c: &Coverage) {
+    println!("{c:?}");
+    assert!(c.lost >= 1, "the covered frames were not lost");
+    assert!(c.relocalised >= 1, "no relocalisation");
+    assert!(c.registrations >= 1, "the loop stage registered nothing");
+    assert!(
+        c.closures >= 1,
+        "no loop closed (the deformation never ran)"
+    );
+    assert!(c.global_looks >= 1, "no global look");
+    assert!(c.absorbed >= 1, "nothing merged");
+}
+
+/// Keeps every core busy with float work until dropped.
+struct Load {
+    stop: Arc<AtomicBool>,
+    threads: Vec<std::thread::JoinHandle<f64>>,
+}
+
+impl Load {
+    fn start() -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let cores = std::thread::available_parallelism().map_or(2, usize::from);
+        let threads = (0..cores)
+            .map(|t| {
+                let stop = Arc::clone(&stop);
+                std::thread::spawn(move || {
+                    let mut x = 1.0 + t as f64;
+                    while !stop.load(Ordering::Relaxed) {
+                        for _ in 0..10_000 {
+                            x = (x * 1.000_001).sqrt() + 0.5;
+                        }
+                    }
+                    x
+                })
+            })
+            .collect();
+        Self { stop, threads }
+    }
+}
+
+impl Drop for Load {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Rayon pools of 1, 2, 4, 2 and 4 threads, one after the other, while
+/// other threads keep every core busy: five runs, the same bits.
+#[test]
+fn five_runs_on_one_two_and_four_threads_under_load_give_the_same_trajectory_and_map() {
+    let config = config();
+    let frames = frames(&config);
+    let _load = Load::start();
+    let (first, coverage) = in_pool(1, || play(&config, &frames));
+    check_coverage(&coverage);
+    assert_eq!(first.trajectory.len(), frames.len());
+    for (run, threads) in [2, 4, 2, 4].into_iter().enumerate() {
+        let (again, _) = in_pool(threads, || play(&config, &frames));
+        assert_same(
+            &format!("run {} on {threads} threads vs run 1 on 1 thread", run + 2),
+            &first,
+            &again,
+        );
+    }
+}
