@@ -236,8 +236,7 @@ impl LoopCloser {
         }
         self.collect_matches(map, &registration);
         if registration.moves_map(&self.config) {
-            let corrected = registration.correction * *pose;
-            match self.bend(map, trajectory, (pose, corrected)) {
+            match self.bend(map, trajectory, pose, now) {
                 Ok(report) => {
                     outcome.closed = true;
                     outcome.deform = Some(report);
@@ -281,13 +280,11 @@ impl LoopCloser {
         let found = {
             let map_ref = &*map;
             let (fusion, fused) = (frame.fusion, frame.fused);
-            // The old map: surfels created before the keyframes looked at
-            // and not seen since the active window began. Those created
-            // since are the drifted copy of the place; old surfels seen
-            // again lately were merged with what the drifted tracker
-            // measured and follow it (on a real kitchen loop 50-91 % of
-            // the model, and registrations landed 0.2-2.5 cm from the
-            // tracked pose whatever the drift).
+            // The old map: surfels created before the keyframes looked at.
+            // Those created since are the drifted copy of the place; old
+            // surfels seen again since (active again after a closure) are
+            // kept, else the leftovers a closure did not reactivate would
+            // be all the model shows there.
             let before = now.saturating_sub(config.min_age_frames);
             let first_seen = map_ref.first_seen();
             find_global_match(
@@ -295,7 +292,7 @@ impl LoopCloser {
                 look.pyramid,
                 Model {
                     map: map_ref,
-                    seen: fusion.inactive_at(now),
+                    seen: 0..u32::MAX,
                     include: |i| {
                         fusion.predicts(map_ref, i, fused)
                             && first_seen.get(i).is_some_and(|&t| t < before)
@@ -318,8 +315,7 @@ impl LoopCloser {
         let view = look.relocaliser.keyframe_view();
         let inactive_before = frame.fusion.active_at(now).start;
         self.collect_global(map, &found, view, look.pyramid, (now, inactive_before));
-        let corrected = found.registration.world_from_camera;
-        match self.bend(map, trajectory, (pose, corrected)) {
+        match self.bend(map, trajectory, pose, now) {
             Ok(report) => {
                 outcome.closed = true;
                 outcome.deform = Some(report);
@@ -487,14 +483,13 @@ impl LoopCloser {
     }
 
     /// Builds the graph over the map, optimises it for the constraints and,
-    /// when accepted, moves every surfel and every past pose, and puts
-    /// `pose` (the current frame's) at `corrected`, where the registration put it:
-    /// the constraints hold only to `max_constraint_error_m`.
+    /// when accepted, moves every surfel, every past pose and `pose`.
     fn bend(
         &mut self,
         map: &mut SurfelMap,
         trajectory: &mut [(f64, DAffine3)],
-        (pose, corrected): (&mut DAffine3, DAffine3),
+        pose: &mut DAffine3,
+        now: u32,
     ) -> Result<DeformReport, DeformError> {
         let mut graph = DeformationGraph::from_samples(
             map.positions(),
@@ -506,7 +501,7 @@ impl LoopCloser {
         for (i, (_, p)) in trajectory.iter_mut().enumerate() {
             *p = graph.apply_to_pose(p, u32::try_from(i).unwrap_or(u32::MAX));
         }
-        *pose = corrected;
+        *pose = graph.apply_to_pose(pose, now);
         self.graph = Some(graph);
         Ok(report)
     }

@@ -7,7 +7,6 @@ use glam::{DAffine3, DMat3, DVec3, Mat3, Vec3};
 use rayon::prelude::*;
 
 use super::{DeformError, DeformationGraph};
-use crate::features::rigid::fit_rigid;
 
 /// The `f32` form of the corrections used to move many points: `R - I`,
 /// `R⁻ᵀ - I` (normals) and `t`, so the identity moves nothing exactly.
@@ -130,56 +129,55 @@ impl DeformationGraph {
     }
 
     /// A camera pose (`world_from_camera`, metres) of frame `time`, moved
-    /// as the surfaces it saw: points in front of the camera (a 3x3 fan at
-    /// [`VIEW_DEPTHS_M`], where such a camera's surfaces lie) are moved by
-    /// the graph at `time`, and the pose takes the rigid motion that best
-    /// fits theirs. Moving the centre as a point instead used the nodes
-    /// nearest the camera (metres from what it saw) and a rotation's lever
-    /// arm from them: a 5 cm correction moved the frames before it 11-12 cm
-    /// on a real loop. Non-finite poses and identity graphs return
-    /// `world_from_camera`.
+    /// with the surfaces seen then: its centre as a point, its orientation
+    /// by the weighted node rotations (projected to the nearest rotation).
+    /// Non-finite poses and identity graphs return `world_from_camera`.
     #[must_use]
     pub fn apply_to_pose(&self, world_from_camera: &DAffine3, time: u32) -> DAffine3 {
-        if self.is_empty() || self.is_identity() || !world_from_camera.is_finite() {
+        let centre = world_from_camera.translation;
+        if self.is_empty() || self.is_identity() || !centre.is_finite() {
             return *world_from_camera;
         }
-        let mut pairs = [(DVec3::ZERO, DVec3::ZERO); 18];
-        let mut i = 0;
-        for z in VIEW_DEPTHS_M {
-            for y in [-0.3, 0.0, 0.3] {
-                for x in [-0.4, 0.0, 0.4] {
-                    let seen = world_from_camera.transform_point3(DVec3::new(x * z, y * z, z));
-                    pairs[i] = (self.moved_point(seen, time), seen);
-                    i += 1;
-                }
-            }
+        let c32 = centre.as_vec3();
+        let inf = self.influence(c32, time);
+        let mut dp = DVec3::ZERO;
+        let mut blend = DMat3::ZERO;
+        for i in 0..inf.count {
+            let j = inf.nodes[i] as usize;
+            let w = f64::from(inf.weights[i]);
+            let g = self.nodes[j].position.as_dvec3();
+            let r = self.corrections.rotation[j];
+            dp += w * ((r - DMat3::IDENTITY) * (centre - g) + self.corrections.translation[j]);
+            blend += r * w;
         }
-        let Some(moved_from_seen) = fit_rigid(pairs.iter().copied()) else {
-            return *world_from_camera;
-        };
-        let moved = moved_from_seen * *world_from_camera;
+        let rotation = nearest_rotation(&blend);
+        let moved =
+            DAffine3::from_mat3_translation(rotation * world_from_camera.matrix3, centre + dp);
         if moved.is_finite() {
             moved
         } else {
             *world_from_camera
         }
     }
-
-    /// `p` (world frame, metres, observed at frame `t`) moved by the graph, in `f64`.
-    fn moved_point(&self, p: DVec3, t: u32) -> DVec3 {
-        let inf = self.influence(p.as_vec3(), t);
-        let mut dp = DVec3::ZERO;
-        for i in 0..inf.count {
-            let j = inf.nodes[i] as usize;
-            let g = self.nodes[j].position.as_dvec3();
-            let r = self.corrections.rotation[j];
-            dp += f64::from(inf.weights[i])
-                * ((r - DMat3::IDENTITY) * (p - g) + self.corrections.translation[j]);
-        }
-        p + dp
-    }
 }
 
-/// Depths (metres, camera frame) of the points a pose is moved by: where an
-/// RGB-D camera's surfaces lie indoors.
-const VIEW_DEPTHS_M: [f64; 2] = [1.0, 2.0];
+/// The rotation nearest to `m` (polar decomposition by SVD, reflections
+/// flipped); the identity when `m` is degenerate.
+fn nearest_rotation(m: &DMat3) -> DMat3 {
+    let a = nalgebra::Matrix3::from_fn(|r, c| m.col(c)[r]);
+    let svd = a.svd(true, true);
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return DMat3::IDENTITY;
+    };
+    let mut u = u;
+    if (u * v_t).determinant() < 0.0 {
+        u.column_mut(2).neg_mut();
+    }
+    let r = u * v_t;
+    let out = crate::se3::dmat3_from_nalgebra(&r);
+    if out.is_finite() {
+        out
+    } else {
+        DMat3::IDENTITY
+    }
+}
