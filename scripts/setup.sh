@@ -39,7 +39,8 @@ if [ ${#need_apt[@]} -gt 0 ]; then
 fi
 
 if [ -f package-lock.json ]; then
-  if [ ! -d node_modules/playwright-core ] || [ ! -d node_modules/gltf-validator ]; then
+  if [ ! -d node_modules/playwright-core ] || [ ! -d node_modules/gltf-validator ] \
+    || [ ! -d node_modules/typescript ] || [ ! -d node_modules/@types/node ]; then
     log "npm ci"
     npm ci --no-audit --no-fund --loglevel=error
   fi
