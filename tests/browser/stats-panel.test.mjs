@@ -49,7 +49,7 @@ test('relocalised frames, loop closures and the loop stage time reach the panel 
       }
       return { rows: rows(), withoutLoop, seen, marks: plots.marks, strip: Array.from(plots.verdicts.subarray(0, verdicts.length)) };
     });
-    assert.equal(r.rows['relocalised'], '1 (last: frame 5 at keyframe 2)');
+    assert.equal(r.rows['relocalised'], '1 (last: frame 4, placed by the keyframe of frame 1)');
     assert.equal(r.rows['loop closures'], '1 (1 global)');
     // The window's mean: 4 ms on the last two of its eight frames.
     assert.equal(r.rows['loop'], '1.0', 'the loop stage time once reported');
