@@ -84,10 +84,10 @@ fn a_saved_map_becomes_mesh_files() {
         assert!(std::fs::metadata(&path).expect("written").len() > 10_000);
     }
     let (code, _, stderr) = mesh(&[map, "-o", "x.stl"]);
-    assert_eq!(code, 1);
-    assert!(stderr.contains("unknown mesh format"), "{stderr}");
+    assert_eq!(code, 2, "a bad output name is a command-line error");
+    assert!(stderr.contains("must end in .glb, .ply or .obj"), "{stderr}");
     let (code, _, stderr) = mesh(&[map, "-o", "x.glb", "--voxel-size=-1"]);
-    assert_eq!(code, 1);
+    assert_eq!(code, 2, "a bad voxel size is a command-line error");
     assert!(stderr.contains("voxel size"), "{stderr}");
     let (code, _, stderr) = mesh(&[
         dir.join("missing.ply").to_str().expect("utf8"),
