@@ -330,6 +330,40 @@ pub fn ate_report(
     })
 }
 
+/// Position errors (metres) of `poses` (`world_from_camera`, all of the
+/// frame at `timestamp`) against the ground truth, after aligning the
+/// ground truth with the estimate's poses before `aligned_before` only
+/// (timestamps within `max_dt`): where the early part of the map says the
+/// frame should be. Loop closure's record asks whether a correction moved
+/// the current pose toward the truth; an alignment on the whole run would
+/// include the drifted part being judged. `None` when the ground truth has
+/// no pose within `max_dt` of `timestamp`.
+pub fn errors_in_early_alignment(
+    estimate: &[(f64, DAffine3)],
+    ground_truth: &[(f64, DAffine3)],
+    max_dt: f64,
+    (aligned_before, timestamp): (f64, f64),
+    poses: &[DAffine3],
+) -> Result<Option<Vec<f64>>, EvalError> {
+    let early: Vec<(f64, DAffine3)> = estimate
+        .iter()
+        .copied()
+        .filter(|(t, _)| *t < aligned_before)
+        .collect();
+    let alignment = ate(&early, ground_truth, max_dt)?.ground_truth_from_estimate;
+    let probe = [(timestamp, DAffine3::IDENTITY)];
+    let matched = associate_indices(&probe, ground_truth, Association::Timestamp { max_dt })?;
+    let Some(truth) = matched.first().map(|&(_, j)| ground_truth[j].1.translation) else {
+        return Ok(None);
+    };
+    Ok(Some(
+        poses
+            .iter()
+            .map(|p| (alignment.transform_point3(p.translation) - truth).length())
+            .collect(),
+    ))
+}
+
 /// Rotation angle of a (near-)rotation matrix, radians in [0, pi].
 fn rotation_angle(m: DMat3) -> f64 {
     let q = DQuat::from_mat3(&m).normalize();

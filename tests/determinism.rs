@@ -157,8 +157,8 @@ impl Coverage {
         for r in reports {
             c.lost += usize::from(matches!(r.verdict, Verdict::Lost(_)));
             c.relocalised += usize::from(r.checks.relocalised_from.is_some());
-            c.registrations += usize::from(r.loop_registration.is_some());
-            c.global_looks += usize::from(r.loop_global_looked);
+            c.registrations += usize::from(r.loop_outcome.registration.is_some());
+            c.global_looks += usize::from(r.loop_outcome.global_looked);
             c.absorbed += r.fusion.absorbed;
         }
         c.closures = reports.last().map_or(0, |r| r.loop_closures);

@@ -60,7 +60,7 @@ impl Run {
         self.reports
             .iter()
             .enumerate()
-            .filter_map(|(i, r)| r.loop_global.map(|g| (i, g)))
+            .filter_map(|(i, r)| r.loop_outcome.global.map(|g| (i, g)))
     }
 
     fn global_closures(&self) -> usize {
@@ -291,7 +291,11 @@ fn a_repetitive_scene_closes_no_global_loop() {
         };
         (shot, false)
     });
-    let looks = run.reports.iter().filter(|r| r.loop_global_looked).count();
+    let looks = run
+        .reports
+        .iter()
+        .filter(|r| r.loop_outcome.global_looked)
+        .count();
     println!(
         "repetitive row: {looks} global looks, {} matches, ATE {:.3} cm",
         run.global().count(),
@@ -336,7 +340,11 @@ fn frames_of_other_places_spliced_in_close_no_global_loop() {
         };
         (shot, spliced(i))
     });
-    let looks = run.reports.iter().filter(|r| r.loop_global_looked).count();
+    let looks = run
+        .reports
+        .iter()
+        .filter(|r| r.loop_outcome.global_looked)
+        .count();
     println!(
         "spliced frames: {looks} global looks, {} matches, ATE {:.3} cm",
         run.global().count(),
@@ -344,9 +352,9 @@ fn frames_of_other_places_spliced_in_close_no_global_loop() {
     );
     for (i, r) in run.reports.iter().enumerate().filter(|(i, _)| spliced(*i)) {
         assert!(
-            r.loop_global.is_none(),
+            r.loop_outcome.global.is_none(),
             "spliced frame {i} matched {:?}",
-            r.loop_global
+            r.loop_outcome.global
         );
     }
     run.assert_global_matches_right();
@@ -417,7 +425,7 @@ fn real_run_in(dir: &std::path::Path, global: bool, order: &[usize]) -> RealRun 
         .iter()
         .enumerate()
         .filter_map(|(i, r)| {
-            let g = r.loop_global?;
+            let g = r.loop_outcome.global?;
             let gt = truth_at(i)?;
             let kf = g.keyframe_frame as usize;
             let off = |p: &DAffine3| {
@@ -439,7 +447,10 @@ fn real_run_in(dir: &std::path::Path, global: bool, order: &[usize]) -> RealRun 
         })
         .collect();
     let loop_ms = reports.iter().map(|r| r.timings.loop_ms).collect();
-    let looked = reports.iter().map(|r| r.loop_global_looked).collect();
+    let looked = reports
+        .iter()
+        .map(|r| r.loop_outcome.global_looked)
+        .collect();
     RealRun {
         ate_m: a.rmse_m,
         lost: slam.counts().lost,

@@ -247,10 +247,24 @@ fn closing_the_synthetic_loop_halves_the_drift_and_merges_the_doubled_surfaces()
         open.slam.map().live_len(),
         closed.slam.map().live_len(),
     );
-    for r in closed.reports.iter().filter(|r| r.loop_closed) {
+    // Every closure moves the current pose toward the truth (the
+    // synthetic world is the first camera's, as the pipeline's).
+    for r in closed.reports.iter().filter(|r| r.loop_outcome.closed) {
+        let truth = closed.truth[r.index as usize].1.translation;
+        let before = (r.loop_outcome.tracked.translation - truth).length();
+        let after = (r.world_from_camera.translation - truth).length();
         println!(
-            "  closure at frame {}: {:.1} ms",
-            r.index, r.timings.loop_ms
+            "  closure at frame {}: {:.1} ms, pose off the truth {:.2} -> {:.2} cm ({})",
+            r.index,
+            r.timings.loop_ms,
+            before * 100.0,
+            after * 100.0,
+            r.loop_outcome.decision().unwrap_or_default()
+        );
+        assert!(
+            after <= before + 0.005,
+            "closure at frame {} moved the pose away from the truth: {before} -> {after} m",
+            r.index
         );
     }
     assert_eq!(common::lost_count(&closed.reports), 0);
@@ -298,7 +312,7 @@ fn no_closure_without_a_revisit() {
     let accepted = run
         .reports
         .iter()
-        .filter(|r| r.loop_registration.is_some_and(|g| g.accepted()))
+        .filter(|r| r.loop_outcome.registration.is_some_and(|g| g.accepted()))
         .count();
     assert_eq!(accepted, 0);
     assert_eq!(run.reports.last().map(|r| r.loop_closures), Some(0));
@@ -331,7 +345,7 @@ fn a_spliced_frame_of_another_place_closes_no_loop() {
             .expect("frame");
         let r = slam.push_frame(&frame, i as f64).expect("push");
         if spliced {
-            spliced_closures += u32::from(r.loop_closed);
+            spliced_closures += u32::from(r.loop_outcome.closed);
         } else {
             truth.push((i as f64, origin_inv * pose));
         }

@@ -85,7 +85,10 @@ fn a_saved_map_becomes_mesh_files() {
     }
     let (code, _, stderr) = mesh(&[map, "-o", "x.stl"]);
     assert_eq!(code, 2, "a bad output name is a command-line error");
-    assert!(stderr.contains("must end in .glb, .ply or .obj"), "{stderr}");
+    assert!(
+        stderr.contains("must end in .glb, .ply or .obj"),
+        "{stderr}"
+    );
     let (code, _, stderr) = mesh(&[map, "-o", "x.glb", "--voxel-size=-1"]);
     assert_eq!(code, 2, "a bad voxel size is a command-line error");
     assert!(stderr.contains("voxel size"), "{stderr}");

@@ -110,7 +110,7 @@ fn window_reference() {
             let r = pipeline
                 .push_frame(&frame, f.timestamp)
                 .expect("frame accepted");
-            registrations += usize::from(r.loop_registration.is_some());
+            registrations += usize::from(r.loop_outcome.registration.is_some());
         }
         (pipeline.trajectory().to_vec(), registrations)
     });

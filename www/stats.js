@@ -42,6 +42,7 @@ export class Stats {
     this.loopClosures = null; // closures so far (null: the module reports none)
     this.globalLoopClosures = 0; // of those, closed by the global check
     this.hasLoopStage = false;
+    this.lastLoopDecision = null; // what the loop stage last checked and decided (report.loopDecision)
     this.recent = []; // {t, timings, wall}
     this.fps = 0;
     this.msPerFrame = 0;
@@ -71,6 +72,7 @@ export class Stats {
     if (Number.isFinite(r.loopClosures)) this.loopClosures = r.loopClosures;
     if (Number.isFinite(r.globalLoopClosures)) this.globalLoopClosures = r.globalLoopClosures;
     if (Number.isFinite(r.timings?.loop)) this.hasLoopStage = true;
+    if (typeof r.loopDecision === 'string') this.lastLoopDecision = r.loopDecision;
     // The report's count is what the map holds (absorbed surfels awaiting
     // compaction left out, as in the PLY); the arrays' length is only what is drawn.
     this.surfels = Number.isFinite(r.surfels) ? r.surfels : msg.surfels.count;
@@ -144,6 +146,7 @@ export class Stats {
           ? '–'
           : `${this.loopClosures}` + (this.globalLoopClosures > 0 ? ` (${this.globalLoopClosures} global)` : ''),
       ],
+      ...(this.loopClosures === null ? [] : [['last loop decision', this.lastLoopDecision ?? '–']]),
       ['failed (errors)', `${this.framesFailed}`],
       ['last verdict', this.lastVerdict ? this.lastVerdict + (this.lastLostReason ? ` (${this.lastLostReason})` : '') : '–'],
       ['surfels', this.surfels.toLocaleString('en-US')],

@@ -16,6 +16,7 @@ use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::mesh::MeshConfig;
 use surfel_slam::{FrameReport, Pipeline, SlamConfig, Verdict};
 
+use crate::loop_log::LoopLog;
 use crate::mesh_file::{mesh_format, write_mesh_file};
 use crate::{
     config_for, describe, evaluate, mesh_path, positive, voxel_size, CameraOverrides, TrackingArgs,
@@ -37,6 +38,11 @@ pub struct RunArgs {
     /// loop closures corrected it (TUM format, world_from_camera).
     #[arg(long)]
     online_trajectory: Option<PathBuf>,
+    /// Write the loop stage's record here (CSV: one row per frame it
+    /// checked, what each check found and which refused; with the ground
+    /// truth's errors of the tracked and corrected pose when known).
+    #[arg(long)]
+    loop_log: Option<PathBuf>,
     /// Write the surfel map here (binary PLY).
     #[arg(long)]
     ply: Option<PathBuf>,
@@ -83,8 +89,20 @@ pub fn run(args: &RunArgs) -> Result<u8> {
     let frames = select_frames(&sequence, args)?;
     let mesh_config = checked_mesh_config(args)?;
     let mut slam = start_pipeline(&mut source, &sequence, &frames, args)?;
-    let played = track_frames(&mut source, &frames, &mut slam, args.quiet);
+    let mut loop_log = args
+        .loop_log
+        .as_ref()
+        .map(|_| LoopLog::new(&sequence.ground_truth));
+    let played = track_frames(
+        &mut source,
+        &frames,
+        &mut slam,
+        (args.quiet, loop_log.as_mut()),
+    );
     write_outputs(args, &slam, mesh_config)?;
+    if let (Some(log), Some(path)) = (&loop_log, &args.loop_log) {
+        log.write(path)?;
+    }
     print_summary(args, &sequence, &slam, frames.len(), played);
     Ok(if played.failed > 0 {
         EXIT_FRAMES_SKIPPED
@@ -235,12 +253,12 @@ fn progress_bar(frames: usize, quiet: bool) -> ProgressBar {
 }
 
 /// Reads and pushes every frame into `slam`, naming lost, recovered and
-/// skipped frames on stderr.
+/// skipped frames on stderr, recording the loop stage in `loop_log` when given.
 fn track_frames(
     source: &mut DatasetSource,
     frames: &[&FrameEntry],
     slam: &mut Pipeline,
-    quiet: bool,
+    (quiet, mut loop_log): (bool, Option<&mut LoopLog<'_>>),
 ) -> Played {
     let bar = progress_bar(frames.len(), quiet);
     let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
@@ -258,6 +276,9 @@ fn track_frames(
         match result {
             Ok((report, elapsed)) => {
                 ms.push(elapsed);
+                if let Some(log) = loop_log.as_deref_mut() {
+                    log.record(slam, &report);
+                }
                 report_verdict(&bar, entry, &report, streak);
                 streak = report.counts.lost_streak;
                 bar.set_message(format!(

@@ -13,6 +13,7 @@
 
 mod bench;
 mod evaluate;
+mod loop_log;
 mod mesh_file;
 mod plot;
 mod run;

@@ -21,14 +21,19 @@ use crate::track::{TrackerConfig, TrackerWorkspace};
 use glam::{DAffine3, Vec3};
 
 use super::deformation::{Constraint, DeformError, DeformReport, DeformationGraph};
-use super::global::{constraints_into, find_global_match, GlobalClosure, GlobalMatch};
+use super::global::{constraints_into, find_global_match, GlobalClosure, GlobalMatch, GlobalMiss};
 use super::local::{ModelRegistration, Registration};
-use super::relocalise::{Model, Relocaliser, Trackers};
+use super::relocalise::{Model, PlaceAttempt, Relocaliser, Trackers};
 use super::LoopClosureConfig;
 
-/// What the stage did on one frame.
-#[derive(Debug, Clone, Default, PartialEq)]
+/// What the stage did on one frame: every check it ran, what each found
+/// and which refused (the per-frame loop record the CLI's `--loop-log`
+/// writes and the page shows).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct LoopOutcome {
+    /// The pose the stage started from (`world_from_camera`, metres: the
+    /// tracked pose, before any bend of this frame).
+    pub tracked: DAffine3,
     /// A registration ran (the inactive model overlapped the view).
     pub registration: Option<Registration>,
     /// The map, trajectory and pose were bent.
@@ -44,6 +49,14 @@ pub struct LoopOutcome {
     pub reactivated: usize,
     /// The global check looked the frame up among the old keyframes.
     pub global_looked: bool,
+    /// Keyframes the global look registered the frame against.
+    pub global_candidates: usize,
+    /// Of those, the one whose registration got furthest through the
+    /// checks (the match itself when there was one).
+    pub global_attempt: Option<PlaceAttempt>,
+    /// Why the global look closed nothing (`None` when it did not look or
+    /// found a match).
+    pub global_miss: Option<GlobalMiss>,
     /// A verified match with a place seen long ago; `closed` (here and in
     /// the summary) when the map was bent by it.
     pub global: Option<GlobalClosure>,
@@ -179,7 +192,10 @@ impl LoopCloser {
         frame: &LoopFrame<'_>,
         global: Option<GlobalLook<'_>>,
     ) -> LoopOutcome {
-        let mut outcome = LoopOutcome::default();
+        let mut outcome = LoopOutcome {
+            tracked: *pose,
+            ..LoopOutcome::default()
+        };
         if !self.config.enabled || map.is_empty() || frame.fusion.inactive_at(frame.now).is_empty()
         {
             return outcome;
@@ -309,8 +325,18 @@ impl LoopCloser {
                 &config,
             )
         };
-        let Some(found) = found else {
-            return;
+        let attempts = look.relocaliser.attempts();
+        outcome.global_candidates = attempts.len();
+        outcome.global_attempt = match &found {
+            Ok(_) => attempts.last().copied(),
+            Err(_) => furthest(attempts),
+        };
+        let found = match found {
+            Ok(found) => found,
+            Err(miss) => {
+                outcome.global_miss = Some(miss);
+                return;
+            }
         };
         let view = look.relocaliser.keyframe_view();
         let inactive_before = frame.fusion.active_at(now).start;
@@ -505,4 +531,17 @@ impl LoopCloser {
         self.graph = Some(graph);
         Ok(report)
     }
+}
+
+/// The attempt that passed the most checks (a refusal later in the order,
+/// or none); the most similar keyframe among equals.
+fn furthest(attempts: &[PlaceAttempt]) -> Option<PlaceAttempt> {
+    attempts.iter().copied().reduce(|best, a| {
+        let stage = |x: &PlaceAttempt| x.refused.map_or(u8::MAX, |r| r as u8);
+        if stage(&a) > stage(&best) {
+            a
+        } else {
+            best
+        }
+    })
 }

@@ -111,12 +111,49 @@ impl GlobalMatch {
     }
 }
 
+/// Why a global look found no loop to close.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GlobalMiss {
+    /// Not a frame the check looks at ([`GlobalConfig::looks_at`]), or the
+    /// tracked pose is not finite.
+    NotLooked,
+    /// No keyframe old enough looks like the frame.
+    NoKeyframe,
+    /// Every keyframe tried was refused by a check of
+    /// [`Relocaliser::place`] (see [`Relocaliser::attempts`]).
+    Refused,
+    /// The registered pose is within the minimum correction of the tracked
+    /// one: no drift to correct.
+    TooSmall,
+    /// The correction is larger than tracking can drift between looks.
+    TooLarge,
+    /// The normal tracker, started at the tracked pose, stays near it in
+    /// the old model's view: the old model holds two answers.
+    SecondAnswer,
+}
+
+impl GlobalMiss {
+    /// Short kebab-case name (`no-keyframe`, ...).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::NotLooked => "not-looked",
+            Self::NoKeyframe => "no-keyframe",
+            Self::Refused => "refused",
+            Self::TooSmall => "too-small",
+            Self::TooLarge => "too-large",
+            Self::SecondAnswer => "second-answer",
+        }
+    }
+}
+
 /// Looks for a place seen before frame `now - config.min_age_frames` in
 /// the frame encoded in `relocaliser` (`pyramid`, tracked at `tracked`,
-/// frame `now`); `model` should hold the inactive surfels only. `None` on
-/// the frames it does not look at ([`GlobalConfig::looks_at`]), when no
-/// old keyframe looks like the frame, when no registration passes, or when
-/// the correction is below the minimum or above the maximum.
+/// frame `now`); `model` should hold the inactive surfels only. The miss
+/// says which step found nothing: a frame it does not look at
+/// ([`GlobalConfig::looks_at`]), no old keyframe like the frame, no
+/// registration passing, a correction below the minimum or above the
+/// maximum, or a second answer near the tracked pose.
 pub fn find_global_match<F: Fn(usize) -> bool + Sync>(
     relocaliser: &mut Relocaliser,
     pyramid: &FramePyramid,
@@ -125,12 +162,18 @@ pub fn find_global_match<F: Fn(usize) -> bool + Sync>(
     workspace: &mut TrackerWorkspace,
     (tracked, now): (&DAffine3, u32),
     config: &GlobalConfig,
-) -> Option<GlobalMatch> {
-    if !config.looks_at(now) || !tracked.is_finite() {
-        return None;
-    }
-    let before = now.checked_sub(config.min_age_frames)?;
-    let registration = relocaliser.place(pyramid, model, trackers, workspace, before)?;
+) -> Result<GlobalMatch, GlobalMiss> {
+    let before = now.checked_sub(config.min_age_frames);
+    let Some(before) = before.filter(|_| config.looks_at(now) && tracked.is_finite()) else {
+        return Err(GlobalMiss::NotLooked);
+    };
+    let Some(registration) = relocaliser.place(pyramid, model, trackers, workspace, before) else {
+        return Err(if relocaliser.attempts().is_empty() {
+            GlobalMiss::NoKeyframe
+        } else {
+            GlobalMiss::Refused
+        });
+    };
     let found = GlobalMatch {
         registration,
         tracked: *tracked,
@@ -139,8 +182,11 @@ pub fn find_global_match<F: Fn(usize) -> bool + Sync>(
     let (dt, dr) = (found.magnitude().0, found.magnitude().1.to_degrees());
     let large = dt >= config.min_correction_m || dr >= config.min_correction_deg;
     let plausible = dt <= config.max_correction_m && dr <= config.max_correction_deg;
-    if !(large && plausible) {
-        return None;
+    if !large {
+        return Err(GlobalMiss::TooSmall);
+    }
+    if !plausible {
+        return Err(GlobalMiss::TooLarge);
     }
     // The old model may hold the frame where it was tracked as well: then
     // it has two answers and neither is a loop to close. TUM fr3/teddy
@@ -162,7 +208,10 @@ pub fn find_global_match<F: Fn(usize) -> bool + Sync>(
         && from_tracked.conditioning >= trackers.min_conditioning
         && (at > config.max_disagreement_m || ar.to_degrees() > config.max_disagreement_deg)
         && stayed <= at;
-    (!second_answer).then_some(found)
+    if second_answer {
+        return Err(GlobalMiss::SecondAnswer);
+    }
+    Ok(found)
 }
 
 impl GlobalConfig {

@@ -81,6 +81,9 @@ pub struct Registration {
     /// Free-space violation fraction, the larger of the two directions
     /// (active points against the inactive model and the reverse).
     pub free_space: f64,
+    /// The same of the models as they lie (no correction): what sensor
+    /// noise and fusion leave in front of a surface on this view.
+    pub start_free_space: f64,
     /// `None` when accepted, otherwise why not.
     pub rejected: Option<Rejection>,
 }
@@ -96,6 +99,7 @@ impl Registration {
             start_residual_rms_m: 0.0,
             conditioning: 0.0,
             free_space: 0.0,
+            start_free_space: 0.0,
             rejected: Some(reason),
         }
     }
@@ -189,8 +193,11 @@ impl ModelRegistration {
         result.start_residual_rms_m = start_residual_rms_m;
         result.rejected = judge(&result, config, n);
         if result.rejected.is_none() {
-            result.free_space = self.free_space(active, inactive, &result, config, verify);
-            if result.free_space > config.max_free_space_fraction {
+            result.free_space =
+                self.free_space(active, inactive, &result.correction, config, verify);
+            result.start_free_space =
+                self.free_space(active, inactive, &DAffine3::IDENTITY, config, verify);
+            if result.free_space - result.start_free_space > config.max_free_space_fraction {
                 result.rejected = Some(Rejection::FreeSpace);
             }
         }
@@ -263,6 +270,7 @@ impl ModelRegistration {
                 0.0
             },
             free_space: 0.0,
+            start_free_space: 0.0,
             rejected: None,
         }
     }
@@ -274,12 +282,12 @@ impl ModelRegistration {
         &mut self,
         active: &Prediction,
         inactive: &Prediction,
-        result: &Registration,
+        correction: &DAffine3,
         config: &LoopClosureConfig,
         verify: &VerifyConfig,
     ) -> f64 {
         let view = inactive.world_from_camera;
-        let correction = result.correction;
+        let correction = *correction;
         let camera_from_world = RigidF32::from_affine(&view.inverse());
         self.active_points.clear();
         self.active_points.extend(

@@ -102,6 +102,65 @@ pub struct Relocalisation {
     pub photometric_error: f32,
 }
 
+/// The check of [`Relocaliser::place`] that refused a keyframe's
+/// registration, in the order they run (a later one got further).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum PlaceRefusal {
+    /// The wide search from the keyframe's pose diverged.
+    Diverged,
+    /// The normal tracker lost the frame against the keyframe's view.
+    Lost,
+    /// The normal tracker's system was too weakly conditioned.
+    IllConditioned,
+    /// The pose landed too far from the keyframe it started at.
+    FarFromKeyframe,
+    /// The frame's points lie in front of the model, or the model shows
+    /// through the frame's surfaces.
+    FreeSpace,
+    /// Too few of the small images' blocks could be compared.
+    NoPhotometricOverlap,
+    /// The grey levels disagree with the keyframe's.
+    Photometric,
+}
+
+impl PlaceRefusal {
+    /// Short kebab-case name (`far-from-keyframe`, ...).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Diverged => "diverged",
+            Self::Lost => "lost",
+            Self::IllConditioned => "ill-conditioned",
+            Self::FarFromKeyframe => "far-from-keyframe",
+            Self::FreeSpace => "free-space",
+            Self::NoPhotometricOverlap => "no-photometric-overlap",
+            Self::Photometric => "photometric",
+        }
+    }
+}
+
+/// One keyframe tried by [`Relocaliser::place`]: where its registration
+/// put the frame and which check refused it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlaceAttempt {
+    /// Frame index of the keyframe.
+    pub keyframe_frame: u32,
+    /// Fern dissimilarity of the keyframe to the frame (0..1).
+    pub dissimilarity: f32,
+    /// The pose registration found (`world_from_camera`, metres; the
+    /// keyframe's own pose when the search diverged).
+    pub world_from_camera: DAffine3,
+    /// The normal tracker's eigenvalue ratio at that pose.
+    pub conditioning: f64,
+    /// Free-space violation fraction (0 when not reached).
+    pub free_space: f64,
+    /// Mean grey-level difference to the keyframe (0..255; `None` when
+    /// not reached or too few blocks compared).
+    pub photometric_error: Option<f32>,
+    /// `None` when every check passed.
+    pub refused: Option<PlaceRefusal>,
+}
+
 /// The trackers relocalisation runs: the normal one (whose verdict counts)
 /// and the re-acquisition one with wide gates (which finds the start).
 #[derive(Debug, Clone, Copy)]
@@ -141,6 +200,8 @@ pub struct Relocaliser {
     /// Never built: no tile culling (the keyframe's depth is coarse).
     tiles: DepthTiles,
     matches: Vec<FernMatch>,
+    /// The keyframes the last [`Self::place`] tried, in order.
+    attempts: Vec<PlaceAttempt>,
     /// Whether the last [`Self::encode`] succeeded.
     encoded: bool,
 }
@@ -158,6 +219,7 @@ impl Relocaliser {
             measured: Vec::new(),
             tiles: DepthTiles::default(),
             matches: Vec::new(),
+            attempts: Vec::new(),
             encoded: false,
         })
     }
@@ -188,10 +250,18 @@ impl Relocaliser {
         &self.prediction
     }
 
+    /// The keyframes the last [`Self::place`] (or [`Self::relocalise`])
+    /// tried, most similar first; the last one is the match when it found one.
+    #[must_use]
+    pub fn attempts(&self) -> &[PlaceAttempt] {
+        &self.attempts
+    }
+
     /// Forgets every keyframe.
     pub fn clear(&mut self) {
         self.database.clear();
         self.prediction.clear();
+        self.attempts.clear();
         self.encoded = false;
     }
 
@@ -259,60 +329,123 @@ impl Relocaliser {
             &mut matches,
         );
         let (normal, wide) = (icp_only(trackers.normal), icp_only(trackers.wide));
-        let found = matches.iter().find_map(|m| {
-            let keyframe = self.database.keyframes().get(m.keyframe)?;
+        self.attempts.clear();
+        let mut found = None;
+        for m in &matches {
+            let Some(keyframe) = self.database.keyframes().get(m.keyframe) else {
+                continue;
+            };
             let start = keyframe.world_from_camera;
-            let frame_index = keyframe.frame_index;
-            self.render_keyframe_view(m.keyframe, &k, &model);
-            let searched = track(pyramid, &self.prediction, &start, &wide, workspace);
-            if !searched.world_from_camera.is_finite() {
-                return None;
-            }
-            let result = track(
-                pyramid,
-                &self.prediction,
-                &searched.world_from_camera,
-                &normal,
-                workspace,
-            );
-            let pose = result.world_from_camera;
-            let (dt, dr) = se3::motion_magnitude(&(start.inverse() * pose));
-            let near_keyframe = dt <= self.config.max_from_keyframe_m
-                && dr.to_degrees() <= self.config.max_from_keyframe_deg;
-            if result.lost.is_some()
-                || !pose.is_finite()
-                || result.conditioning < trackers.min_conditioning
-                || !near_keyframe
-            {
-                return None;
-            }
-            let coarsest = pyramid.levels.last()?;
-            let verify = &normal.verify;
-            let (free_space, landed) =
-                free_space_violation(&self.prediction, &coarsest.vertices, 1, &pose, verify);
-            let see_through = see_through_fraction(&self.prediction, coarsest, &pose, verify);
-            let limit = verify.max_free_space_fraction;
-            if landed == 0 || free_space > limit || see_through > limit {
-                return None;
-            }
-            let photometric = photometric_error(
-                self.database.current(),
-                self.database.keyframes().get(m.keyframe)?,
-                &k,
-                &pose,
-                self.config.min_photometric_overlap,
-            )?;
-            (photometric <= self.config.max_photometric_error).then_some(Relocalisation {
-                world_from_camera: pose,
-                keyframe_frame: frame_index,
+            let mut attempt = PlaceAttempt {
+                keyframe_frame: keyframe.frame_index,
                 dissimilarity: m.dissimilarity,
-                result,
-                free_space,
-                photometric_error: photometric,
-            })
-        });
+                world_from_camera: start,
+                conditioning: 0.0,
+                free_space: 0.0,
+                photometric_error: None,
+                refused: None,
+            };
+            self.render_keyframe_view(m.keyframe, &k, &model);
+            let result = self.try_keyframe(
+                pyramid,
+                m.keyframe,
+                (&normal, &wide),
+                &trackers,
+                workspace,
+                &mut attempt,
+            );
+            self.attempts.push(attempt);
+            if let Some(result) = result {
+                found = Some(Relocalisation {
+                    world_from_camera: attempt.world_from_camera,
+                    keyframe_frame: attempt.keyframe_frame,
+                    dissimilarity: attempt.dissimilarity,
+                    result,
+                    free_space: attempt.free_space,
+                    photometric_error: attempt.photometric_error.unwrap_or(0.0),
+                });
+                break;
+            }
+        }
         self.matches = matches;
         found
+    }
+
+    /// Registers the frame against keyframe `id`'s view (rendered into
+    /// `self.prediction`) and runs every check, filling `attempt`; the
+    /// normal tracker's result when all pass.
+    fn try_keyframe(
+        &self,
+        pyramid: &FramePyramid,
+        id: usize,
+        (normal, wide): (&TrackerConfig, &TrackerConfig),
+        trackers: &Trackers<'_>,
+        workspace: &mut TrackerWorkspace,
+        attempt: &mut PlaceAttempt,
+    ) -> Option<TrackResult> {
+        let start = attempt.world_from_camera;
+        let refuse = |attempt: &mut PlaceAttempt, why| {
+            attempt.refused = Some(why);
+            None
+        };
+        let searched = track(pyramid, &self.prediction, &start, wide, workspace);
+        if !searched.world_from_camera.is_finite() {
+            return refuse(attempt, PlaceRefusal::Diverged);
+        }
+        let result = track(
+            pyramid,
+            &self.prediction,
+            &searched.world_from_camera,
+            normal,
+            workspace,
+        );
+        let pose = result.world_from_camera;
+        if result.lost.is_some() || !pose.is_finite() {
+            return refuse(attempt, PlaceRefusal::Lost);
+        }
+        attempt.world_from_camera = pose;
+        attempt.conditioning = result.conditioning;
+        if result.conditioning < trackers.min_conditioning {
+            return refuse(attempt, PlaceRefusal::IllConditioned);
+        }
+        let (dt, dr) = se3::motion_magnitude(&(start.inverse() * pose));
+        if dt > self.config.max_from_keyframe_m
+            || dr.to_degrees() > self.config.max_from_keyframe_deg
+        {
+            return refuse(attempt, PlaceRefusal::FarFromKeyframe);
+        }
+        let Some(coarsest) = pyramid.levels.last() else {
+            return refuse(attempt, PlaceRefusal::Lost);
+        };
+        let verify = &normal.verify;
+        let (free_space, landed) =
+            free_space_violation(&self.prediction, &coarsest.vertices, 1, &pose, verify);
+        let see_through = see_through_fraction(&self.prediction, coarsest, &pose, verify);
+        attempt.free_space = free_space.max(see_through);
+        let limit = verify.max_free_space_fraction;
+        if landed == 0 || free_space > limit || see_through > limit {
+            return refuse(attempt, PlaceRefusal::FreeSpace);
+        }
+        let Some(keyframe) = self.database.keyframes().get(id) else {
+            return refuse(attempt, PlaceRefusal::Lost);
+        };
+        let Some(k) = pyramid.levels.first().and_then(|l| l.intrinsics) else {
+            return refuse(attempt, PlaceRefusal::Lost);
+        };
+        let Some(photometric) = photometric_error(
+            self.database.current(),
+            keyframe,
+            &k,
+            &pose,
+            self.config.min_photometric_overlap,
+        ) else {
+            return refuse(attempt, PlaceRefusal::NoPhotometricOverlap);
+        };
+        attempt.photometric_error = Some(photometric);
+        if photometric > self.config.max_photometric_error {
+            return refuse(attempt, PlaceRefusal::Photometric);
+        }
+        Some(result)
     }
 
     /// The normal tracker (as [`Relocaliser::place`] runs it) from `from`

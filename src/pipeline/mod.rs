@@ -261,11 +261,7 @@ impl Pipeline {
             predict_ms: t4 - t3b,
             total_ms: t4 - t0,
         };
-        let mut report = self.report(index, timestamp, &tracked, fusion, timings);
-        report.loop_closed = closure.closed;
-        report.loop_registration = closure.registration;
-        report.loop_global_looked = closure.global_looked;
-        report.loop_global = closure.global;
+        let mut report = self.report(index, timestamp, &tracked, (fusion, closure), timings);
         report.settings_warning = self.settings_check.take_unreported();
         Ok(report)
     }
@@ -471,7 +467,7 @@ impl Pipeline {
         index: u32,
         timestamp: f64,
         tracked: &Tracked,
-        fusion: FusionStats,
+        (fusion, loop_outcome): (FusionStats, LoopOutcome),
         timings: StageTimings,
     ) -> FrameReport {
         let stats = tracked.result;
@@ -491,10 +487,7 @@ impl Pipeline {
             checks: tracked.checks,
             loop_closures: self.loop_closer.closures(),
             global_loop_closures: self.loop_closer.global_closures(),
-            loop_closed: false,
-            loop_registration: None,
-            loop_global_looked: false,
-            loop_global: None,
+            loop_outcome,
             settings_warning: None,
             timings,
         }

@@ -2,8 +2,7 @@
 
 use super::SettingsWarning;
 use crate::fusion::FusionStats;
-use crate::loop_closure::global::GlobalClosure;
-use crate::loop_closure::local::Registration;
+use crate::loop_closure::LoopOutcome;
 use crate::track::verify::TrackingChecks;
 use crate::track::LostReason;
 use glam::DAffine3;
@@ -127,17 +126,9 @@ pub struct FrameReport {
     pub loop_closures: u32,
     /// Of `loop_closures`, those the global check made.
     pub global_loop_closures: u32,
-    /// This frame closed a loop: every surfel and past pose may have moved
-    /// (the whole map is in the changed range).
-    pub loop_closed: bool,
-    /// The model-to-model registration this frame ran (when the view
-    /// overlapped the inactive model), accepted or not.
-    pub loop_registration: Option<Registration>,
-    /// The global loop check looked this frame up among the old keyframes.
-    pub loop_global_looked: bool,
-    /// This frame matched a place seen long ago (the global check);
-    /// `loop_closed` is set too when the map was bent by it.
-    pub loop_global: Option<GlobalClosure>,
+    /// What the loop-closure stage checked on this frame and what it
+    /// decided (its `closed`: every surfel and past pose may have moved).
+    pub loop_outcome: LoopOutcome,
     /// A camera-settings warning first reported with this frame (a depth
     /// scale or layout check; all of them: `Pipeline::settings_warnings`).
     pub settings_warning: Option<SettingsWarning>,

@@ -55,6 +55,8 @@ export interface FrameReport {
   globalLoopClosures: number;
   /** This frame closed a loop: every surfel and past pose may have moved (take the whole changed range and the trajectory again). */
   loopClosed: boolean;
+  /** What the loop stage checked and decided on this frame, one line naming the frame; null when it checked nothing. */
+  loopDecision: string | null;
   /** A camera setting that looks wrong for the data, first found with this frame (e.g. a depth scale that puts most depths beyond the cut-off); all of them: Slam.settingsWarnings(). null when none. */
   settingsWarning: string | null;
   /** Milliseconds per stage. */
@@ -219,7 +221,13 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
         ),
         ("loopClosures", r.loop_closures.into()),
         ("globalLoopClosures", r.global_loop_closures.into()),
-        ("loopClosed", r.loop_closed.into()),
+        ("loopClosed", r.loop_outcome.closed.into()),
+        (
+            "loopDecision",
+            r.loop_outcome.decision().map_or(JsValue::NULL, |d| {
+                (d + &format!(" (frame {})", r.index)).into()
+            }),
+        ),
         (
             "settingsWarning",
             r.settings_warning

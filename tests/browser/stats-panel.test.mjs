@@ -30,7 +30,8 @@ test('relocalised frames, loop closures and the loop stage time reach the panel 
         const relocalisedFrom = index === 4 ? 1 : null;
         const loop = index >= 6; // a module with the loop stage from frame 6 on
         const timings = { decode: 1, preprocess: 1, track: 2, fuse: 3, predict: 1, total: 8, ...(loop ? { loop: 4 } : {}) };
-        const result = { verdict, relocalisedFrom, timings, surfels: 100, ...(loop ? { loopClosures: index === 7 ? 1 : 0, globalLoopClosures: index === 7 ? 1 : 0 } : {}) };
+        const loopDecision = index === 6 ? 'local refused: free-space (frame 6)' : null;
+        const result = { verdict, relocalisedFrom, timings, surfels: 100, ...(loop ? { loopClosures: index === 7 ? 1 : 0, globalLoopClosures: index === 7 ? 1 : 0, loopDecision } : {}) };
         stats.onFrame({ index, frameCount: verdicts.length, result, surfels: { count: 100, start: 0, end: 0 }, timing: { wall: 9 } });
         plots.add(index, timings, 100, 0.01, { verdict, relocalised: relocalisedFrom !== null, loopClosed: index === 7 });
         if (index === 5) withoutLoop = rows();
@@ -51,6 +52,8 @@ test('relocalised frames, loop closures and the loop stage time reach the panel 
     });
     assert.equal(r.rows['relocalised'], '1 (last: frame 4, placed by the keyframe of frame 1)');
     assert.equal(r.rows['loop closures'], '1 (1 global)');
+    assert.equal(r.rows['last loop decision'], 'local refused: free-space (frame 6)', 'the last decision stays when a frame checks nothing');
+    assert.equal(r.withoutLoop['last loop decision'], undefined, 'no decision row before the module reports loop closure');
     // The window's mean: 4 ms on the last two of its eight frames.
     assert.equal(r.rows['loop'], '1.0', 'the loop stage time once reported');
     assert.equal(r.withoutLoop['loop closures'], '–', 'no count before the module reports one');

@@ -140,7 +140,7 @@ pub struct DeformReport {
 
 /// Why a graph could not be built or an optimisation was rejected. A
 /// rejected optimisation leaves the graph unchanged.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum DeformError {
     /// `positions` and `times` (or `normals`) differ in length.
     #[error("length mismatch: {positions} positions, {other} times/normals")]
