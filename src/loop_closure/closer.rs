@@ -13,6 +13,7 @@
 //! and pins (the inactive surfels the keyframe's view shows stay), bent
 //! with the same graph: the old map stays, the drifted recent part moves.
 
+use crate::camera::pixel_of;
 use crate::camera::Intrinsics;
 use crate::fusion::{FusionConfig, Measured, Prediction, SurfelMap};
 use crate::preprocess::FramePyramid;
@@ -452,16 +453,11 @@ impl LoopCloser {
             let Some(&p) = positions.get(b) else {
                 continue;
             };
-            let q = camera_from_world.transform_point3(p);
-            if q.z <= 0.0 {
-                continue;
-            }
-            let Some(at) = k.pixel_index(k.project(q)) else {
+            let Some((q_z, at)) = pixel_of(&k, camera_from_world.transform_point3(p)) else {
                 continue;
             };
             let z = level.vertices[at].z;
-            let margin = verify.free_space_margin_m + verify.free_space_margin_rel * q.z;
-            if z > 0.0 && (z - q.z).abs() <= margin {
+            if z > 0.0 && (z - q_z).abs() <= verify.margin_at(q_z) {
                 self.matched.push(b);
             }
         }

@@ -17,6 +17,7 @@
 //! Poses are `world_from_camera` (metres); times are frame indices.
 
 use super::ferns::{FernConfig, FernDatabase, FernError, FernFrame, FernMatch, Keyframe};
+use crate::camera::pixel_of;
 use crate::camera::Intrinsics;
 use crate::fusion::{DepthTiles, Measured, Prediction, SurfelMap};
 use crate::preprocess::FramePyramid;
@@ -530,11 +531,7 @@ fn see_through_fraction(
         if (i / width) % 4 != 0 || *model == Vec3::ZERO {
             continue;
         }
-        let q = camera_from_world.transform_point3(*model);
-        if q.z <= 0.0 {
-            continue;
-        }
-        let Some(pixel) = k.pixel_index(k.project(q)) else {
+        let Some((q_z, pixel)) = pixel_of(&k, camera_from_world.transform_point3(*model)) else {
             continue;
         };
         let z = level.vertices[pixel].z;
@@ -542,8 +539,7 @@ fn see_through_fraction(
             continue;
         }
         landed += 1;
-        let margin = config.free_space_margin_m + config.free_space_margin_rel * q.z;
-        if z > q.z + margin {
+        if z > q_z + config.margin_at(q_z) {
             seen_through += 1;
         }
     }

@@ -4,7 +4,7 @@
 //! measured where the model saw empty space says the pose is wrong,
 //! whatever the residual of the surfaces that did line up).
 
-use crate::camera::Intrinsics;
+use crate::camera::pixel_of;
 use crate::features::FeatureConfig;
 use crate::fusion::Prediction;
 use crate::se3;
@@ -96,6 +96,15 @@ impl Default for VerifyConfig {
 }
 
 impl VerifyConfig {
+    /// The free-space margin at depth `z`, metres: how far a point may lie
+    /// off a surface at that depth before it counts as another surface
+    /// (every free-space and see-through check uses this one margin).
+    #[inline]
+    #[must_use]
+    pub fn margin_at(&self, z: f32) -> f32 {
+        self.free_space_margin_m + self.free_space_margin_rel * z
+    }
+
     /// Whether two `world_from_camera` poses agree within the bounds.
     #[must_use]
     pub fn agree(&self, a: &DAffine3, b: &DAffine3) -> bool {
@@ -152,11 +161,7 @@ pub fn free_space_violation(
                 if p.z <= 0.0 {
                     continue;
                 }
-                let q = model_from_frame.transform_point3(*p);
-                if q.z <= 0.0 {
-                    continue;
-                }
-                let Some(i) = pixel(&k, q) else {
+                let Some((q_z, i)) = pixel_of(&k, model_from_frame.transform_point3(*p)) else {
                     continue;
                 };
                 let model = prediction.vertices[i];
@@ -165,8 +170,7 @@ pub fn free_space_violation(
                 }
                 let z_model = model_from_world.transform_point3(model).z;
                 landed += 1;
-                let margin = config.free_space_margin_m + config.free_space_margin_rel * z_model;
-                if q.z < z_model - margin {
+                if q_z < z_model - config.margin_at(z_model) {
                     violations += 1;
                 }
             }
@@ -174,10 +178,6 @@ pub fn free_space_violation(
         })
         .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     (violations as f64 / landed.max(1) as f64, landed)
-}
-
-fn pixel(k: &Intrinsics, q: Vec3) -> Option<usize> {
-    k.pixel_index(k.project(q))
 }
 
 /// What the independent checks said about one frame.
