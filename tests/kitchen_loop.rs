@@ -8,28 +8,15 @@
 mod common;
 
 use common::shared_dataset;
-use surfel_slam::dataset::{read_frame, Sequence};
+use surfel_slam::dataset::Sequence;
 use surfel_slam::eval::{ate, errors_in_early_alignment};
-use surfel_slam::{FrameReport, Pipeline, SlamConfig};
+use surfel_slam::{FrameReport, Pipeline};
 
 const SEQUENCE: &str = "7scenes_redkitchen_even";
 
 /// Plays the whole sequence at the preset's defaults, `loop_closure` on or off.
 fn play(dir: &std::path::Path, loop_closure: bool) -> (Pipeline, Sequence, Vec<FrameReport>) {
-    let sequence = Sequence::open(dir).expect("sequence opens");
-    let mut config = SlamConfig::from_preset(sequence.preset);
-    config.loop_closure.enabled = loop_closure;
-    let mut slam = Pipeline::new(config.clone()).expect("valid config");
-    let reports = sequence
-        .frames
-        .iter()
-        .map(|entry| {
-            let frame = read_frame(dir, entry, &config.depth).expect("frame decodes");
-            slam.push_frame(&frame, entry.timestamp)
-                .expect("frame accepted")
-        })
-        .collect();
-    (slam, sequence, reports)
+    common::run_dataset_with(dir, |config| config.loop_closure.enabled = loop_closure)
 }
 
 /// The tracked and the corrected pose's errors (metres) for every frame

@@ -73,8 +73,17 @@ pub fn run_synthetic_with(
 
 /// Runs a real dataset folder through the pipeline with its preset.
 pub fn run_dataset(dir: &Path) -> (Pipeline, Sequence, Vec<FrameReport>) {
+    run_dataset_with(dir, |_| {})
+}
+
+/// [`run_dataset`] with the preset's configuration changed by `adjust`.
+pub fn run_dataset_with(
+    dir: &Path,
+    adjust: impl FnOnce(&mut SlamConfig),
+) -> (Pipeline, Sequence, Vec<FrameReport>) {
     let sequence = Sequence::open(dir).expect("sequence opens");
-    let config = SlamConfig::from_preset(sequence.preset);
+    let mut config = SlamConfig::from_preset(sequence.preset);
+    adjust(&mut config);
     let mut slam = Pipeline::new(config.clone()).expect("valid config");
     let reports = sequence
         .frames
