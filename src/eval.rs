@@ -367,7 +367,7 @@ pub fn errors_in_early_alignment(
 /// Rotation angle of a (near-)rotation matrix, radians in [0, pi].
 fn rotation_angle(m: DMat3) -> f64 {
     let q = DQuat::from_mat3(&m).normalize();
-    2.0 * q.xyz().length().atan2(q.w.abs())
+    2.0 * libm::atan2(q.xyz().length(), q.w.abs())
 }
 
 /// Relative pose error over consecutive matched frames: for each step

@@ -19,6 +19,7 @@ pub mod mesh;
 pub mod noise;
 pub mod ordered_sum;
 pub mod pipeline;
+pub mod portable_math;
 pub mod preprocess;
 pub mod random;
 pub mod se3;

@@ -104,7 +104,11 @@ impl FramePyramid {
             .flat_map(|dy| (-r..=r).step_by(step).map(move |dx| (dx, dy)))
             .map(|(dx, dy)| {
                 let d2 = (dx * dx + dy * dy) as f32;
-                (dx, dy, (-d2 / (2.0 * config.sigma_space_px.powi(2))).exp())
+                (
+                    dx,
+                    dy,
+                    libm::expf(-d2 / (2.0 * config.sigma_space_px.powi(2))),
+                )
             })
             .collect();
         let n = intrinsics.pixel_count();

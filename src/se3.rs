@@ -42,9 +42,9 @@ pub fn exp(twist: &Twist) -> DAffine3 {
         )
     } else {
         (
-            theta.sin() / theta,
-            (1.0 - theta.cos()) / theta2,
-            (theta - theta.sin()) / (theta2 * theta),
+            libm::sin(theta) / theta,
+            (1.0 - libm::cos(theta)) / theta2,
+            (theta - libm::sin(theta)) / (theta2 * theta),
         )
     };
     let rotation = DMat3::IDENTITY + k * a + k2 * b;
@@ -57,7 +57,7 @@ pub fn exp(twist: &Twist) -> DAffine3 {
 pub fn log(pose: &DAffine3) -> Twist {
     let rotation = pose.matrix3;
     let q = DQuat::from_mat3(&rotation).normalize();
-    let (axis, angle) = q.to_axis_angle();
+    let (axis, angle) = crate::portable_math::axis_angle(q);
     let angle = if angle > std::f64::consts::PI {
         angle - 2.0 * std::f64::consts::PI
     } else {
@@ -70,7 +70,7 @@ pub fn log(pose: &DAffine3) -> Twist {
     let c = if theta < 1e-6 {
         1.0 / 12.0
     } else {
-        (1.0 - theta * theta.sin() / (2.0 * (1.0 - theta.cos()))) / theta2
+        (1.0 - theta * libm::sin(theta) / (2.0 * (1.0 - libm::cos(theta)))) / theta2
     };
     let left_jacobian_inv = DMat3::IDENTITY - k * 0.5 + k * k * c;
     let v = left_jacobian_inv * pose.translation;
@@ -81,7 +81,7 @@ pub fn log(pose: &DAffine3) -> Twist {
 #[must_use]
 pub fn motion_magnitude(pose: &DAffine3) -> (f64, f64) {
     let q = DQuat::from_mat3(&pose.matrix3).normalize();
-    let angle = 2.0 * q.w.abs().min(1.0).acos();
+    let angle = 2.0 * libm::acos(q.w.abs().min(1.0));
     (pose.translation.length(), angle)
 }
 

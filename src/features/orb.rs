@@ -5,6 +5,7 @@
 //! smoothed image: single pixels are too noisy to compare.
 
 use super::Descriptor;
+use crate::portable_math::unit_vec2;
 use crate::random::SplitMix;
 use glam::Vec2;
 
@@ -41,8 +42,8 @@ impl SteeredPattern {
         let mut gaussian_point = || loop {
             // Box-Muller.
             let (u1, u2) = (rng.next_f32().max(1e-7), rng.next_f32());
-            let r = sigma * (-2.0 * u1.ln()).sqrt();
-            let p = Vec2::from_angle(std::f32::consts::TAU * u2) * r;
+            let r = sigma * (-2.0 * libm::logf(u1)).sqrt();
+            let p = unit_vec2(std::f32::consts::TAU * u2) * r;
             if p.length() <= PAIR_RADIUS {
                 return p;
             }
@@ -52,7 +53,7 @@ impl SteeredPattern {
             .collect();
         let bins = (0..ANGLE_BINS)
             .map(|bin| {
-                let rot = Vec2::from_angle(bin as f32 * std::f32::consts::TAU / ANGLE_BINS as f32);
+                let rot = unit_vec2(bin as f32 * std::f32::consts::TAU / ANGLE_BINS as f32);
                 let mut out = [[0i8; 4]; BITS];
                 for (o, (a, b)) in out.iter_mut().zip(&pairs) {
                     let (a, b) = (rot.rotate(*a), rot.rotate(*b));
@@ -110,7 +111,7 @@ pub fn orientation(grey: &[f32], width: usize, (u, v): (usize, usize)) -> f32 {
             m01 += dy as f32 * g;
         }
     }
-    m01.atan2(m10)
+    libm::atan2f(m01, m10)
 }
 
 /// Separable [1 4 6 4 1] / 16 blur of `grey` into `out` (`tmp` as scratch),

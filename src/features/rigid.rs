@@ -152,7 +152,7 @@ pub fn ransac_rigid(
             if p_good >= 1.0 {
                 needed = iteration;
             } else if p_good > 0.0 {
-                let k = (1.0 - config.confidence).ln() / (1.0 - p_good).ln();
+                let k = libm::log(1.0 - config.confidence) / libm::log(1.0 - p_good);
                 needed = if k.is_finite() {
                     k.ceil() as usize
                 } else {

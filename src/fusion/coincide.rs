@@ -60,7 +60,7 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
     }
     lo -= Vec3::splat(COINCIDE_M);
     hi += Vec3::splat(COINCIDE_M);
-    let cos_gate = config.normal_gate_deg.to_radians().cos();
+    let cos_gate = libm::cosf(config.normal_gate_deg.to_radians());
     // (young, old, distance) for every coinciding pair, found from the old side.
     let mut pairs: Vec<(u32, u32, f32)> = (0..n)
         .into_par_iter()

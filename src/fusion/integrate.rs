@@ -218,7 +218,7 @@ impl Integrator {
     /// window gets a second copy, which loop closure aligns and fuses.
     fn associate(&mut self, map: &SurfelMap, view: &FrameView<'_>, config: &FusionConfig) {
         let (chunks, visible) = (&self.chunks, &self.visible);
-        let cos_gate = config.normal_gate_deg.to_radians().cos();
+        let cos_gate = libm::cosf(config.normal_gate_deg.to_radians());
         let best = &self.best;
         let (k, camera_from_world, level0) = (view.k, &view.camera_from_world, view.level0);
         // Each candidate surfel's pixel is kept for the merge pass.
@@ -278,7 +278,7 @@ impl Integrator {
         // exp(-gamma^2 / (2 sigma^2)) is a product of a column and a row factor.
         let scale =
             1.0 / (2.0 * config.confidence_sigma.powi(2) * (k.cx * k.cx + k.cy * k.cy).max(1.0));
-        let radial = |d: f32| (-(d * d) * scale).exp();
+        let radial = |d: f32| libm::expf(-(d * d) * scale);
         self.weight_u.clear();
         self.weight_u
             .extend((0..k.width).map(|u| radial(u as f32 - k.cx)));
@@ -370,7 +370,7 @@ impl Integrator {
             (&self.weight_u, &self.weight_v, &self.weight_noise),
             config,
         );
-        let cos_gate = config.normal_gate_deg.to_radians().cos();
+        let cos_gate = libm::cosf(config.normal_gate_deg.to_radians());
         let (level0, best) = (view.level0, &self.best);
         let (w, h) = (view.k.width, view.k.height);
         // Which pixels add a surfel is decided in parallel (the map is only
@@ -501,7 +501,7 @@ fn absorb_redundant(
     map: &mut SurfelMap,
     config: &FusionConfig,
 ) -> usize {
-    let cos_gate = config.normal_gate_deg.to_radians().cos();
+    let cos_gate = libm::cosf(config.normal_gate_deg.to_radians());
     let winner = |j: usize| {
         let key = best[pixels[j] as usize].load(Ordering::Relaxed) & 0xffff_ffff;
         (key as usize).checked_sub(1)

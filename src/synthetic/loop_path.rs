@@ -22,16 +22,20 @@ pub fn loop_pose(index: usize, frames_per_loop: usize) -> DAffine3 {
     let turn = index as f64 / frames_per_loop.max(1) as f64;
     let theta = 0.2 + TAU * turn;
     let radius = 0.8;
-    let height = 1.45 + 0.05 * (2.0 * theta).sin();
-    let eye = DVec3::new(radius * theta.cos(), -height, radius * theta.sin());
-    let look = theta + 1.75 + 0.1 * (3.0 * theta).sin();
-    let target = DVec3::new(
-        eye.x + 2.0 * look.cos(),
-        -0.4 - 0.2 * (2.0 * theta).cos(),
-        eye.z + 2.0 * look.sin(),
+    let height = 1.45 + 0.05 * libm::sin(2.0 * theta);
+    let eye = DVec3::new(
+        radius * libm::cos(theta),
+        -height,
+        radius * libm::sin(theta),
     );
-    let roll = 2f64.to_radians() * (4.0 * theta).sin();
-    look_at(eye, target) * DAffine3::from_rotation_z(roll)
+    let look = theta + 1.75 + 0.1 * libm::sin(3.0 * theta);
+    let target = DVec3::new(
+        eye.x + 2.0 * libm::cos(look),
+        -0.4 - 0.2 * libm::cos(2.0 * theta),
+        eye.z + 2.0 * libm::sin(look),
+    );
+    let roll = 2f64.to_radians() * libm::sin(4.0 * theta);
+    look_at(eye, target) * DAffine3::from_mat3(crate::portable_math::rotation_z(roll))
 }
 
 #[cfg(test)]

@@ -185,7 +185,7 @@ impl NoiseStream {
         // u1 in (0, 1] so that ln(u1) is finite.
         let u1 = ((bits >> 40) as f32 + 1.0) * (1.0 / (1u64 << 24) as f32);
         let u2 = (bits & 0xFF_FFFF) as f32 * (1.0 / (1u64 << 24) as f32);
-        let r = (-2.0 * u1.ln()).sqrt();
+        let r = (-2.0 * libm::logf(u1)).sqrt();
         let (s, c) = (sin_turns(u2), sin_turns(u2 + 0.25));
         self.spare = Some(r * s);
         r * c

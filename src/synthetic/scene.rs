@@ -120,14 +120,14 @@ impl Scene {
             SceneBox::rotated(
                 DVec3::new(2.2, -0.6, -1.5),
                 DVec3::new(0.3, 0.6, 0.35),
-                DQuat::from_rotation_y(35f64.to_radians()),
+                crate::portable_math::quat_from_axis_angle(DVec3::Y, 35f64.to_radians()),
                 5,
             ),
             // Ramp: a thin slab tilted 25 degrees about x, resting on the floor.
             SceneBox::rotated(
                 DVec3::new(-0.3, -0.24, 2.3),
                 DVec3::new(0.7, 0.03, 0.5),
-                DQuat::from_rotation_x(25f64.to_radians()),
+                crate::portable_math::quat_from_axis_angle(DVec3::X, 25f64.to_radians()),
                 6,
             ),
         ];

@@ -40,20 +40,24 @@ pub fn trajectory_pose(index: usize) -> DAffine3 {
     let t = index as f64;
     // Slow arc around the vertical axis through the room centre.
     let theta = 0.2 + 0.011 * t;
-    let radius = 1.1 + 0.15 * (0.017 * t).sin();
-    let height = 1.45 + 0.12 * (0.023 * t).sin();
-    let eye = DVec3::new(radius * theta.cos(), -height, radius * theta.sin());
+    let radius = 1.1 + 0.15 * libm::sin(0.017 * t);
+    let height = 1.45 + 0.12 * libm::sin(0.023 * t);
+    let eye = DVec3::new(
+        radius * libm::cos(theta),
+        -height,
+        radius * libm::sin(theta),
+    );
     // Looking ahead along the arc and a little inward (100 degrees from the
     // outward radius), at a point 2 m away horizontally and 0.2..0.6 m above
     // the floor, with a gentle yaw / pitch wobble.
-    let look = theta + 1.75 + 0.12 * (0.031 * t).sin();
+    let look = theta + 1.75 + 0.12 * libm::sin(0.031 * t);
     let target = DVec3::new(
-        eye.x + 2.0 * look.cos(),
-        -0.4 - 0.2 * (0.019 * t).sin(),
-        eye.z + 2.0 * look.sin(),
+        eye.x + 2.0 * libm::cos(look),
+        -0.4 - 0.2 * libm::sin(0.019 * t),
+        eye.z + 2.0 * libm::sin(look),
     );
-    let roll = 3f64.to_radians() * (0.05 * t).sin();
-    look_at(eye, target) * DAffine3::from_rotation_z(roll)
+    let roll = 3f64.to_radians() * libm::sin(0.05 * t);
+    look_at(eye, target) * DAffine3::from_mat3(crate::portable_math::rotation_z(roll))
 }
 
 /// The first `frames` poses (world_from_camera) of a known smooth handheld-like

@@ -267,7 +267,7 @@ fn count_correspondences(
     grid.counts.clear();
     grid.counts.resize(grid.vertices.len(), 0);
     let height = grid.vertices.len() / width.max(1);
-    let cos_gate = gates.normal_gate_deg.to_radians().cos();
+    let cos_gate = libm::cosf(gates.normal_gate_deg.to_radians());
     for v in (0..mk.height).step_by(2) {
         for u in (0..mk.width).step_by(2) {
             let i = v * mk.width + u;

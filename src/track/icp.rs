@@ -123,7 +123,7 @@ pub fn icp_step(
     let (Some(pk), Some(tk)) = (prediction.intrinsics, target.intrinsics) else {
         return IcpStep::default();
     };
-    let cos_gate = gates.normal_gate_deg.to_radians().cos();
+    let cos_gate = libm::cosf(gates.normal_gate_deg.to_radians());
     let gate2 = gates.distance_gate_m * gates.distance_gate_m;
     let stride = stride.max(1);
     // Fixed blocks of rows summed in row order: the same bits on any

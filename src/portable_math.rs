@@ -1,0 +1,76 @@
+//! Rotations built from sines, cosines and arctangents that give the same
+//! bits on every target.
+//!
+//! `f64::sin`, `f32::exp` and the like call the platform's maths library:
+//! glibc natively, compiler-builtins' port of musl in wasm32. Both are
+//! within an ulp of the true value but not always the same ulp, and one
+//! last bit of a filter weight or a pose grows through tracking into
+//! millimetres (`docs/performance.md#determinism`). The pipeline therefore
+//! calls the `libm` crate (the same code on every target) for every
+//! transcendental function, and glam's constructors that call std's
+//! (`from_rotation_z`, `from_angle`, `to_axis_angle`) are replaced here.
+//! Square roots need nothing: IEEE 754 rounds them exactly everywhere.
+
+use glam::{DMat3, DQuat, DVec3, Vec2};
+
+/// Rotation by `angle` (radians) about the z axis (glam's
+/// `DMat3::from_rotation_z`, computed with `libm`).
+#[must_use]
+pub fn rotation_z(angle: f64) -> DMat3 {
+    let (s, c) = libm::sincos(angle);
+    DMat3::from_cols(DVec3::new(c, s, 0.0), DVec3::new(-s, c, 0.0), DVec3::Z)
+}
+
+/// Unit quaternion of a rotation by `angle` (radians) about the unit
+/// vector `axis` (glam's `DQuat::from_axis_angle`, computed with `libm`).
+#[must_use]
+pub fn quat_from_axis_angle(axis: DVec3, angle: f64) -> DQuat {
+    let (s, c) = libm::sincos(angle * 0.5);
+    let v = axis * s;
+    DQuat::from_xyzw(v.x, v.y, v.z, c)
+}
+
+/// Axis and angle (radians, in [0, 2 pi]) of a unit quaternion (glam's
+/// `DQuat::to_axis_angle`, computed with `libm`); the x axis and 0 for
+/// (near-)identity.
+#[must_use]
+pub fn axis_angle(q: DQuat) -> (DVec3, f64) {
+    let v = DVec3::new(q.x, q.y, q.z);
+    let length = v.length();
+    if length >= 1.0e-8 {
+        (v / length, 2.0 * libm::atan2(length, q.w))
+    } else {
+        (DVec3::X, 0.0)
+    }
+}
+
+/// The unit vector at `angle` (radians) from the x axis (glam's
+/// `Vec2::from_angle`, computed with `libm`).
+#[must_use]
+pub fn unit_vec2(angle: f32) -> Vec2 {
+    let (s, c) = libm::sincosf(angle);
+    Vec2::new(c, s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn agree_with_glam_within_an_ulp_or_two() {
+        for i in -40..=40 {
+            let a = f64::from(i) * 0.173;
+            let m = rotation_z(a) - DMat3::from_rotation_z(a);
+            assert!(m.to_cols_array().iter().all(|d| d.abs() < 1e-15), "{a}");
+            let axis = DVec3::new(0.3, -0.5, 0.8).normalize();
+            let q = quat_from_axis_angle(axis, a);
+            assert!(q.abs_diff_eq(DQuat::from_axis_angle(axis, a), 1e-15), "{a}");
+            let (ax, an) = axis_angle(q);
+            let (gx, gn) = q.to_axis_angle();
+            assert!(ax.abs_diff_eq(gx, 1e-12) && (an - gn).abs() < 1e-12, "{a}");
+            let v = unit_vec2(a as f32);
+            assert!(v.abs_diff_eq(Vec2::from_angle(a as f32), 1e-6), "{a}");
+        }
+        assert_eq!(axis_angle(DQuat::IDENTITY), (DVec3::X, 0.0));
+    }
+}
