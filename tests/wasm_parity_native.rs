@@ -1,7 +1,11 @@
 //! Native half of the native/wasm parity check (see `tests/wasm_common`):
-//! runs the synthetic sequence and the first ICL-NUIM frames on a
-//! single-thread rayon pool and writes the poses to `target/wasm-parity/`,
-//! where `tests/wasm_node.rs` (wasm32, Node) compares its own against them.
+//! runs the synthetic sequence, the window sequence and the first ICL-NUIM
+//! frames on a single-thread rayon pool and writes the poses' bits to
+//! `target/wasm-parity/`, where `tests/wasm_node.rs` (wasm32, Node)
+//! compares its own against them. For the window sequence it also writes
+//! the frames, the JS config and the per-frame report poses, which
+//! `tests/browser/threaded-parity.test.mjs` plays through the threaded
+//! module in Chromium.
 
 #![cfg(not(target_arch = "wasm32"))]
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
@@ -10,7 +14,7 @@ mod wasm_common;
 
 use std::path::Path;
 
-use surfel_slam::dataset::{trajectory::format_tum, Sequence};
+use surfel_slam::dataset::Sequence;
 use surfel_slam::{eval, Pipeline, RgbdFrame, SlamConfig, Verdict};
 use wasm_common::*;
 
@@ -60,11 +64,47 @@ fn source_fingerprint() -> String {
 
 fn write_reference(name: &str, poses: &[(f64, glam::DAffine3)]) {
     let path = reference_path(name);
-    let text = header(&source_fingerprint()) + &format_tum(poses);
+    let text = header(&source_fingerprint()) + &format_bits(poses);
     std::fs::create_dir_all(Path::new(&path).parent().expect("has a parent"))
         .expect("create target/wasm-parity");
     std::fs::write(&path, text).expect("write the reference");
     eprintln!("wrote {path}");
+}
+
+/// The window sequence for the browser test: `window-frames.bin` (per
+/// frame the RGBA8 pixels, then the depth as little-endian u16) and
+/// `window-config.json` (the JS config object `tests/wasm_node.rs` builds,
+/// the timestamps, the frame size and the sources' fingerprint).
+fn write_browser_input(config: &SlamConfig, frames: &[RawFrame]) {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/wasm-parity");
+    let mut bytes = Vec::new();
+    for f in frames {
+        bytes.extend_from_slice(&f.rgba);
+        bytes.extend(f.depth.iter().flat_map(|d| d.to_le_bytes()));
+    }
+    std::fs::write(dir.join("window-frames.bin"), bytes).expect("write the frames");
+    let (k, d) = (config.intrinsics, config.depth);
+    let timestamps: Vec<String> = frames.iter().map(|f| format!("{}", f.timestamp)).collect();
+    // Rust prints the shortest text that reads back as the same f64, as
+    // JSON.parse reads it: the config's values arrive bit for bit.
+    let json = format!(
+        "{{\"sources\": {:?}, \"width\": {}, \"height\": {}, \"timestamps\": [{}], \"config\": {{\"preset\": \"tum-fr3\", \"fx\": {}, \"fy\": {}, \"cx\": {}, \"cy\": {}, \"width\": {}, \"height\": {}, \"depthScale\": {}, \"depthMin\": {}, \"depthMax\": {}, \"activeWindowFrames\": {}}}}}\n",
+        source_fingerprint(),
+        frames[0].width,
+        frames[0].height,
+        timestamps.join(", "),
+        f64::from(k.fx),
+        f64::from(k.fy),
+        f64::from(k.cx),
+        f64::from(k.cy),
+        k.width,
+        k.height,
+        f64::from(d.scale),
+        f64::from(d.min_m),
+        f64::from(d.max_m),
+        config.fusion.active_window_frames,
+    );
+    std::fs::write(dir.join("window-config.json"), json).expect("write the config");
 }
 
 #[test]
@@ -100,10 +140,11 @@ fn synthetic_reference() {
 #[test]
 fn window_reference() {
     let (config, frames, ground_truth) = window_sequence();
-    let (trajectory, registrations) = single_thread(|| {
+    let (trajectory, online, registrations) = single_thread(|| {
         let settings = config.depth;
-        let mut pipeline = Pipeline::new(config).expect("valid config");
+        let mut pipeline = Pipeline::new(config.clone()).expect("valid config");
         let mut registrations = 0;
+        let mut online = Vec::new();
         for f in &frames {
             let frame = RgbdFrame::from_raw(f.width, f.height, &f.rgba, &f.depth, &settings)
                 .expect("valid frame");
@@ -111,10 +152,14 @@ fn window_reference() {
                 .push_frame(&frame, f.timestamp)
                 .expect("frame accepted");
             registrations += usize::from(r.loop_outcome.registration.is_some());
+            online.push((r.timestamp, r.world_from_camera));
         }
-        (pipeline.trajectory().to_vec(), registrations)
+        (pipeline.trajectory().to_vec(), online, registrations)
     });
     write_reference("window", &trajectory);
+    // The poses as each frame's report gave them (what the page sees).
+    write_reference("window-online", &online);
+    write_browser_input(&config, &frames);
     let ate = eval::ate(&trajectory, &ground_truth, 1e-3).expect("ATE");
     eprintln!(
         "native window sequence: ATE rmse {:.6} m, {registrations} loop registrations",

@@ -3,15 +3,21 @@
 //! reference files through which they are compared.
 //!
 //! How native and wasm results are compared (no hard-coded numbers):
-//! 1. the native test `wasm_parity_native` runs a computation on a
-//!    single-thread rayon pool (so the float reduction order is the one the
-//!    single-threaded wasm module uses) and writes the poses as TUM text to
-//!    `target/wasm-parity/<name>.tum`, with a fingerprint of the sources
+//! 1. the native test `wasm_parity_native` runs a computation and writes
+//!    the poses' bits (hexadecimal, [`format_bits`]) to
+//!    `target/wasm-parity/<name>.bits`, with a fingerprint of the sources
 //!    (`src/**`, `tests/wasm_common/**`, `Cargo.toml`, `Cargo.lock`) in its
 //!    first line;
 //! 2. the wasm test `wasm_node` runs the same computation through the
-//!    bindings and compares its poses with that file — only when the
-//!    fingerprint equals the current sources' (a stale file is never used).
+//!    bindings and requires the same bits — only when the fingerprint
+//!    equals the current sources' (a stale file is never used). The result
+//!    depends neither on the thread count nor on the target: reductions
+//!    are summed in fixed blocks (`ordered_sum`) and transcendental
+//!    functions come from the `libm` crate (`portable_math`), so native,
+//!    the single-threaded module and the threaded page give the same bits
+//!    (`docs/performance.md#determinism`). The browser test
+//!    `tests/browser/threaded-parity.test.mjs` compares the threaded
+//!    module with the same files.
 //!
 //! `scripts/test-wasm.sh` runs step 1 then step 2 and sets
 //! `SURFEL_SLAM_REQUIRE_PARITY=1`, which turns a missing or stale reference
@@ -38,20 +44,52 @@ pub const SYNTHETIC_ATE_BOUND_M: f64 = 0.005;
 /// ATE bound of the first ICL-NUIM frames (noise-free renderings), metres.
 pub const REAL_ATE_BOUND_M: f64 = 0.005;
 
-/// Poses may differ by this much between native and wasm (metres).
-/// Both run the same f32/f64 code with the same reduction order; what can
-/// differ is the last bit of libm functions (`exp`, `atan2`, ...).
-pub const PARITY_TRANSLATION_M: f64 = 1e-5;
-/// Same, rotation angle (radians).
-pub const PARITY_ROTATION_RAD: f64 = 1e-5;
-
 /// Where the native reference trajectories are written.
 #[must_use]
 pub fn reference_path(name: &str) -> String {
     format!(
-        "{}/target/wasm-parity/{name}.tum",
+        "{}/target/wasm-parity/{name}.bits",
         env!("CARGO_MANIFEST_DIR")
     )
+}
+
+/// Poses as text that keeps every bit: per pose one line of 13 hexadecimal
+/// `f64` bit patterns, the timestamp then the affine's columns
+/// (`DAffine3::to_cols_array`).
+#[must_use]
+pub fn format_bits(poses: &[(f64, DAffine3)]) -> String {
+    let mut out = String::new();
+    for (t, pose) in poses {
+        let words: Vec<String> = std::iter::once(*t)
+            .chain(pose.to_cols_array())
+            .map(|x| format!("{:016x}", x.to_bits()))
+            .collect();
+        out.push_str(&words.join(" "));
+        out.push('\n');
+    }
+    out
+}
+
+/// Reads [`format_bits`] text back.
+pub fn parse_bits(text: &str) -> Result<Vec<(f64, DAffine3)>, String> {
+    text.lines()
+        .enumerate()
+        .map(|(i, line)| {
+            let values = line
+                .split_whitespace()
+                .map(|w| u64::from_str_radix(w, 16).map(f64::from_bits))
+                .collect::<Result<Vec<f64>, _>>()
+                .map_err(|e| format!("line {}: {e}", i + 1))?;
+            match values.as_slice() {
+                [t, cols @ ..] if cols.len() == 12 => {
+                    let mut m = [0.0; 12];
+                    m.copy_from_slice(cols);
+                    Ok((*t, DAffine3::from_cols_array(&m)))
+                }
+                _ => Err(format!("line {}: {} values, not 13", i + 1, values.len())),
+            }
+        })
+        .collect()
 }
 
 /// `../shared/data/<name>` (absolute).
@@ -109,7 +147,7 @@ pub fn read_reference(
             text.lines().next().unwrap_or("")
         )
     })?;
-    surfel_slam::dataset::trajectory::parse_tum(body, "native reference").map_err(|e| e.to_string())
+    parse_bits(body)
 }
 
 /// One synthetic frame as a caller with decoded buffers has it.
@@ -209,15 +247,20 @@ pub fn window_sequence() -> (SlamConfig, Vec<RawFrame>, Vec<(f64, DAffine3)>) {
     (config, frames, ground_truth)
 }
 
-/// Whether two trajectories hold the same bits (timestamps and poses).
+/// The first pose (index) at which two trajectories' bits differ
+/// (timestamps and poses), the shorter one's length if one is a prefix of
+/// the other, `None` when they are the same bits.
 #[must_use]
-pub fn same_bits(a: &[(f64, DAffine3)], b: &[(f64, DAffine3)]) -> bool {
+pub fn first_difference(a: &[(f64, DAffine3)], b: &[(f64, DAffine3)]) -> Option<usize> {
     let bits = |(t, p): &(f64, DAffine3)| {
         let mut v = vec![t.to_bits()];
         v.extend(p.to_cols_array().map(f64::to_bits));
         v
     };
-    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| bits(x) == bits(y))
+    a.iter()
+        .zip(b)
+        .position(|(x, y)| bits(x) != bits(y))
+        .or((a.len() != b.len()).then_some(a.len().min(b.len())))
 }
 
 /// Largest translation (m) and rotation (rad) difference between two
