@@ -202,6 +202,7 @@ pub fn project_to_pixels_into(
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     use super::*;
     use glam::{DAffine3, DQuat, DVec3};

@@ -417,6 +417,7 @@ pub fn rpe_with(
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     use super::*;
     use glam::EulerRot;

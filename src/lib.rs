@@ -6,6 +6,11 @@
 //! Conventions: camera frame +x right, +y down, +z forward; metres; poses
 //! named for what they map (`world_from_camera`); depth 0 = no measurement.
 
+// Same bits natively and in wasm: std's exp, sin, atan2... are glibc's
+// natively and compiler-builtins' in wasm32 (clippy.toml lists them; use the
+// libm crate, docs/performance.md#determinism).
+#![deny(clippy::disallowed_methods)]
+
 pub mod camera;
 pub mod clock;
 pub mod dataset;

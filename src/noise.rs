@@ -273,6 +273,7 @@ impl Default for SensorNoise {
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     #[test]
     fn rendered_depth_is_clean_and_noisy_depth_is_not() {

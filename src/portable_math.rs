@@ -53,6 +53,7 @@ pub fn unit_vec2(angle: f32) -> Vec2 {
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     use super::*;
 

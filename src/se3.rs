@@ -406,6 +406,7 @@ pub fn dmat3_from_nalgebra(m: &nalgebra::Matrix3<f64>) -> DMat3 {
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     use super::*;
 

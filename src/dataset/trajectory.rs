@@ -62,6 +62,7 @@ pub fn parse_tum(text: &str, file_name: &str) -> Result<Vec<(f64, DAffine3)>, Da
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     use super::*;
 

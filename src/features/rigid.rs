@@ -192,6 +192,7 @@ pub fn ransac_rigid(
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     use super::*;
     use glam::DQuat;

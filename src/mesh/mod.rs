@@ -261,6 +261,7 @@ pub fn mesh_map(map: &SurfelMap, config: &MeshConfig) -> Result<TriangleMesh, Me
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 pub(crate) mod tests {
     use super::*;
     use std::collections::HashMap;

@@ -39,6 +39,7 @@ pub fn loop_pose(index: usize, frames_per_loop: usize) -> DAffine3 {
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     use super::*;
     use crate::se3::motion_magnitude;

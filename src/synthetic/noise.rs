@@ -193,6 +193,7 @@ impl NoiseStream {
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     use super::*;
     use crate::synthetic::test_support::small;

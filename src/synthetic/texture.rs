@@ -70,6 +70,7 @@ pub(super) fn texture(material: u32, face: u32, a: f32, b: f32) -> [f32; 3] {
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     use crate::synthetic::{default_intrinsics, render, trajectory_pose, NoiseModel, Scene};
 

@@ -75,6 +75,7 @@ pub fn trajectory(frames: usize) -> Vec<DAffine3> {
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     use glam::DQuat;
 
