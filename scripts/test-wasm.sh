@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Everything that tests the WebAssembly side, in order:
 #   1. native reference poses for the parity check (tests/wasm_parity_native.rs
-#      -> target/wasm-parity/*.tum; see tests/wasm_common/mod.rs)
+#      -> target/wasm-parity/*.bits, the poses' bits; see tests/wasm_common/mod.rs)
 #   2. cargo test --target wasm32-unknown-unknown under Node
 #      (wasm-bindgen-test-runner; tests/wasm_node.rs compares with step 1 and,
 #      with SURFEL_SLAM_REQUIRE_PARITY=1, fails on a missing/stale reference)
