@@ -9,7 +9,7 @@ use crate::se3::RigidF32;
 use glam::{Vec2, Vec3};
 
 /// Pinhole intrinsics of one image, in pixels, with the image size.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Intrinsics {
     /// Focal length along x, pixels.
     pub fx: f32,

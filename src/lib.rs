@@ -28,6 +28,7 @@ pub mod portable_math;
 pub mod preprocess;
 pub mod random;
 pub mod se3;
+pub mod session;
 pub mod synthetic;
 pub mod track;
 #[cfg(target_arch = "wasm32")]

@@ -28,7 +28,7 @@
 const MAX_ANGLE_RAD: f32 = 80.0 * std::f32::consts::PI / 180.0;
 
 /// Depth noise of a sensor, in metres and pixels (see the module doc).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SensorNoise {
     /// Constant part of the axial deviation, metres.
     pub base_m: f32,

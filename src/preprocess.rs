@@ -10,7 +10,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 /// Settings of the preprocessing stage.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PreprocessConfig {
     /// Apply the bilateral filter to the depth used for tracking and normals.
     pub bilateral: bool,

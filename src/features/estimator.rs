@@ -165,6 +165,33 @@ impl SparseEstimator {
         self.current.clear();
     }
 
+    /// The reference frame as kept (RGB8, camera-frame points in metres,
+    /// width, height), when one is held: for saving a session.
+    #[must_use]
+    pub fn reference_frame(&self) -> Option<(&[u8], &[Vec3], usize, usize)> {
+        let r = &self.reference;
+        r.held
+            .then_some((&r.rgb[..], &r.vertices[..], r.width, r.height))
+    }
+
+    /// Holds a frame as the reference, as [`Self::reference_frame`] gave
+    /// it (restoring a session); no current frame is held.
+    pub fn restore_reference(
+        &mut self,
+        rgb: &[u8],
+        vertices: &[Vec3],
+        width: usize,
+        height: usize,
+    ) -> Result<(), FeatureError> {
+        self.current.clear();
+        let level = self.extractor.config().level;
+        let kept = self.reference.keep(rgb, vertices, (width, height), level);
+        if kept.is_err() {
+            self.reference.clear();
+        }
+        kept
+    }
+
     /// Forgets both frames.
     pub fn clear(&mut self) {
         self.reference.clear();

@@ -55,7 +55,7 @@ pub struct Feature {
 }
 
 /// Settings of detection and matching.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FeatureConfig {
     /// Pyramid level corners are detected and described at (0 = full
     /// resolution, 1 = half). Half: a quarter of the cost, and a 31-pixel

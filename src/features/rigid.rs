@@ -7,7 +7,7 @@ use glam::{DAffine3, DVec3, Vec3};
 use nalgebra::Matrix3;
 
 /// Settings of [`ransac_rigid`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RansacConfig {
     /// Most 3-point samples drawn.
     pub max_iterations: usize,

@@ -15,7 +15,7 @@ pub use decode::{
 pub use error::{Channel, FrameError};
 
 /// How raw 16-bit depth values become metres.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DepthSettings {
     /// Raw units per metre (5000 TUM/ICL-NUIM, 1000 7-Scenes).
     pub scale: f32,

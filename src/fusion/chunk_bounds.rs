@@ -44,7 +44,39 @@ pub struct ChunkBounds {
     oldest: Vec<u32>,
 }
 
+/// One block of [`ChunkBounds`]: its box and its surfels' `last_seen` range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BlockBox {
+    /// Smallest corner, world frame, metres (`+inf` for an empty box).
+    pub min: Vec3,
+    /// Largest corner, world frame, metres (`-inf` for an empty box).
+    pub max: Vec3,
+    /// No surfel of the block was last updated after this frame.
+    pub newest: u32,
+    /// No surfel of the block was last updated before this frame.
+    pub oldest: u32,
+}
+
 impl ChunkBounds {
+    /// Block `b` as it is (conservative, not rebuilt), for saving a session.
+    #[must_use]
+    pub fn block(&self, b: usize) -> Option<BlockBox> {
+        Some(BlockBox {
+            min: *self.min.get(b)?,
+            max: *self.max.get(b)?,
+            newest: *self.newest.get(b)?,
+            oldest: *self.oldest.get(b)?,
+        })
+    }
+
+    /// Appends a block as [`Self::block`] gave it (restoring a session).
+    pub fn push_block(&mut self, block: BlockBox) {
+        self.min.push(block.min);
+        self.max.push(block.max);
+        self.newest.push(block.newest);
+        self.oldest.push(block.oldest);
+    }
+
     /// Forgets every box.
     pub fn clear(&mut self) {
         self.min.clear();

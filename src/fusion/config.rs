@@ -5,7 +5,7 @@ use crate::noise::SensorNoise;
 use std::ops::Range;
 
 /// Settings of the fusion stage.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FusionConfig {
     /// Largest depth difference (m, along the camera's z) for a merge.
     pub depth_gate_m: f32,

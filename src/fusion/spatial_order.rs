@@ -57,6 +57,31 @@ impl SpatialOrder {
         self.keys.clear();
     }
 
+    /// The sorted runs, in index order (for saving a session: the next
+    /// cleanups merge and re-sort them).
+    #[must_use]
+    pub fn runs(&self) -> &[Range<usize>] {
+        &self.runs
+    }
+
+    /// Restores runs as [`Self::runs`] gave them for a map of `len`
+    /// surfels; refuses runs that overlap, are out of order or empty, or
+    /// reach past the map.
+    pub fn restore_runs(&mut self, runs: Vec<Range<usize>>, len: usize) -> Result<(), String> {
+        let mut end = 0;
+        for r in &runs {
+            if r.start < end || r.end <= r.start || r.end > len {
+                return Err(format!(
+                    "sorted run {r:?} does not follow {end} within {len} surfels"
+                ));
+            }
+            end = r.end;
+        }
+        self.runs = runs;
+        self.keys.clear();
+        Ok(())
+    }
+
     /// Forgets the runs if they reach past a map of `len` surfels: they were
     /// made for another map (emptied or replaced without [`SpatialOrder::clear`])
     /// and would index surfels that are gone.

@@ -121,11 +121,11 @@ pub struct SurfelMap {
     /// with a measurement, or won its pixel as a settled surfel).
     pub(in crate::fusion) last_seen: Vec<u32>,
     /// Lowest index changed since the last `take_changed_range`.
-    change_lo: usize,
+    pub(in crate::fusion) change_lo: usize,
     /// One past the highest index changed since the last `take_changed_range`.
-    change_hi: usize,
+    pub(in crate::fusion) change_hi: usize,
     /// Boxes around blocks of consecutive surfels, for view culling.
-    bounds: ChunkBounds,
+    pub(in crate::fusion) bounds: ChunkBounds,
     /// Frame of the last removal of unstable surfels (see `remove_unstable`).
     pub(in crate::fusion) last_cleanup: Option<u32>,
     /// Lowest index of a surfel absorbed into another since the last
@@ -133,7 +133,7 @@ pub struct SurfelMap {
     pub(in crate::fusion) first_absorbed: Option<usize>,
     /// Slots holding a surfel absorbed into another (see [`SurfelMap::absorb`])
     /// that no cleanup has removed yet.
-    absorbed: usize,
+    pub(in crate::fusion) absorbed: usize,
 }
 
 impl ChunkMut<'_> {

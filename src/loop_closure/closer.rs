@@ -158,6 +158,21 @@ impl LoopCloser {
         self.global_closures
     }
 
+    /// The counters that decide later frames: closures, global closures
+    /// and the frame of the last global closure (its cooldown), for saving
+    /// a session.
+    #[must_use]
+    pub fn counters(&self) -> (u32, u32, Option<u32>) {
+        (self.closures, self.global_closures, self.last_global)
+    }
+
+    /// Restores [`Self::counters`] (loading a session).
+    pub fn restore_counters(&mut self, (closures, global, last_global): (u32, u32, Option<u32>)) {
+        self.closures = closures;
+        self.global_closures = global;
+        self.last_global = last_global;
+    }
+
     /// Forgets the map-dependent state (the map was cleared).
     pub fn reset(&mut self) {
         self.active.clear();

@@ -27,7 +27,7 @@ use thiserror::Error;
 pub const BAD_CODE: u8 = u8::MAX;
 
 /// Settings of the fern database.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FernConfig {
     /// Number of ferns (pixels tested). ElasticFusion: 500.
     pub ferns: usize,
@@ -223,6 +223,40 @@ impl FernDatabase {
         for k in &mut self.keyframes {
             k.world_from_camera = update(k.frame_index, &k.world_from_camera);
         }
+    }
+
+    /// Replaces the keyframes by `keyframes` (oldest first, as
+    /// [`Self::keyframes`] gave them: restoring a session) and rebuilds the
+    /// index. Refuses, leaving the database empty, keyframes whose codes
+    /// or small image do not fit this configuration.
+    pub fn restore_keyframes(&mut self, keyframes: Vec<Keyframe>) -> Result<(), FernError> {
+        self.clear();
+        let (w, h) = (self.config.width, self.config.height);
+        let fits = |k: &Keyframe| {
+            let f = &k.frame;
+            f.codes.len() == self.ferns.len()
+                && (f.width, f.height) == (w, h)
+                && f.rgb.len() == w * h
+                && f.depth_m.len() == w * h
+                && f.far_m.len() == w * h
+                && f.good == f.codes.iter().filter(|&&c| c != BAD_CODE).count()
+                && f.codes.iter().all(|&c| c == BAD_CODE || c < 16)
+                && k.world_from_camera.is_finite()
+        };
+        if keyframes.len() > self.config.max_keyframes || !keyframes.iter().all(fits) {
+            return Err(FernError::InvalidConfig(
+                "saved keyframes do not fit the fern configuration",
+            ));
+        }
+        for (id, k) in keyframes.iter().enumerate() {
+            for (lists, &c) in self.ids.iter_mut().zip(&k.frame.codes) {
+                if let Some(list) = lists.get_mut(usize::from(c)) {
+                    list.push(id as u32);
+                }
+            }
+        }
+        self.keyframes = keyframes;
+        Ok(())
     }
 
     /// Forgets every keyframe (the ferns stay: codes stay comparable).

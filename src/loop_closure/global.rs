@@ -21,7 +21,7 @@ use crate::track::TrackerWorkspace;
 use glam::{DAffine3, Vec3};
 
 /// Settings of the global loop check.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GlobalConfig {
     /// Look for old places at all.
     pub enabled: bool,

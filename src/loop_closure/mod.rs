@@ -31,7 +31,7 @@ use deformation::DeformConfig;
 use global::GlobalConfig;
 
 /// Settings of loop closure (issue #21): when it runs and what it accepts.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LoopClosureConfig {
     /// Run loop closure at all.
     pub enabled: bool,

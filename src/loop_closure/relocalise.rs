@@ -28,7 +28,7 @@ use crate::track::{track, TrackResult, TrackerConfig, TrackerMode, TrackerWorksp
 use glam::{DAffine3, Vec3};
 
 /// Settings of relocalisation.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RelocaliseConfig {
     /// Relocalise lost frames (keyframes are kept either way, for global
     /// loop closure).

@@ -26,7 +26,7 @@
 pub mod export;
 pub mod glb;
 mod grid;
-mod ply_header;
+pub(crate) mod ply_header;
 mod surface_nets;
 pub mod surfel_ply;
 

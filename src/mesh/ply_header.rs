@@ -1,14 +1,16 @@
 //! The header of the binary PLY files written here: the surfel map
-//! ([`super::surfel_ply`]) and the triangle mesh ([`super::export`]).
+//! ([`super::surfel_ply`]), the triangle mesh ([`super::export`]) and a
+//! session's surfels (`crate::session`).
 
 /// The header of a `binary_little_endian 1.0` PLY file whose `vertex`
 /// element has `x y z nx ny nz` (float, world frame, metres; unit normal)
-/// and `red green blue` (uchar), then the float properties `extra_floats`;
-/// with `faces`, a `face` element of that many `uchar int` index lists.
-pub(super) fn write_ply_header(
+/// and `red green blue` (uchar), then the properties `extra` (`(type,
+/// name)`, e.g. `("float", "radius")`); with `faces`, a `face` element of
+/// that many `uchar int` index lists.
+pub(crate) fn write_ply_header(
     comment: &str,
     vertices: usize,
-    extra_floats: &[&str],
+    extra: &[(&str, &str)],
     faces: Option<usize>,
 ) -> String {
     let mut header = format!(
@@ -26,8 +28,8 @@ pub(super) fn write_ply_header(
          property uchar green\n\
          property uchar blue\n"
     );
-    for name in extra_floats {
-        header.push_str(&format!("property float {name}\n"));
+    for (kind, name) in extra {
+        header.push_str(&format!("property {kind} {name}\n"));
     }
     if let Some(faces) = faces {
         header.push_str(&format!(

@@ -249,7 +249,7 @@ pub fn write_surfel_ply(map: &SurfelMap) -> Vec<u8> {
     let header = write_ply_header(
         "surfel-slam surfel map, world frame, metres",
         count,
-        &["radius", "confidence"],
+        &[("float", "radius"), ("float", "confidence")],
         None,
     );
     let mut out = Vec::with_capacity(header.len() + count * VERTEX_BYTES);

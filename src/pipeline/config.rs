@@ -11,7 +11,7 @@ use crate::track::TrackerConfig;
 use thiserror::Error;
 
 /// Everything the pipeline needs to know.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SlamConfig {
     /// Camera intrinsics at the input resolution.
     pub intrinsics: Intrinsics,

@@ -15,10 +15,12 @@ mod input;
 mod recovery;
 mod report;
 mod settings_check;
+mod state;
 
 pub use config::{PipelineError, SlamConfig};
 pub use report::{FrameReport, StageTimings, Verdict, VerdictCounts};
 pub use settings_check::{depth_scale_warning, layout_warnings, SettingsCheck, SettingsWarning};
+pub use state::{LastFusedFrame, PipelineScalars, PipelineState, StateView};
 
 use crate::clock::now_ms;
 use crate::features::SparseEstimator;

@@ -216,7 +216,7 @@ pub fn depth_scale_warning(raw: &[u16], depth: &DepthSettings) -> Option<Setting
 #[derive(Debug, Clone, Default)]
 pub struct SettingsCheck {
     warnings: Vec<SettingsWarning>,
-    depth_checked: bool,
+    pub(super) depth_checked: bool,
     /// Warnings not yet handed to a frame report.
     unreported: Vec<SettingsWarning>,
 }

@@ -32,7 +32,7 @@ use crate::se3::{NormalEquations, RowAccumulator};
 use glam::Vec3;
 
 /// Gates and robust weight of one ICP step.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct IcpGates {
     /// Largest point distance |p' - q| of a correspondence, metres.
     pub distance_gate_m: f32,

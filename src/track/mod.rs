@@ -40,7 +40,7 @@ use verify::VerifyConfig;
 /// against 0.79 cm / 40 ms. Joint is far better under heavy white depth
 /// noise (the synthetic room with Kinect-like noise: 0.45 mm against 13 mm),
 /// so choose it for noisy sensors.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum TrackerMode {
     /// Projective point-to-plane ICP only (geometry).
     #[default]
@@ -73,7 +73,7 @@ impl TrackerMode {
 }
 
 /// Settings of the tracker.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TrackerConfig {
     /// Which cost to minimise.
     pub mode: TrackerMode,
@@ -299,6 +299,17 @@ impl TrackerWorkspace {
             self.rgb
                 .remember_frame(pyramid, world_from_camera, &config.photometric);
         }
+    }
+
+    /// The photometric term's reference pixels per pyramid level (world
+    /// frame): what [`Self::remember_frame`] kept, for saving a session.
+    pub fn photometric_memory(&self) -> impl Iterator<Item = &[rgb::ReferencePoint]> {
+        self.rgb.references()
+    }
+
+    /// Restores [`Self::photometric_memory`] (loading a session).
+    pub fn restore_photometric_memory(&mut self, levels: Vec<Vec<rgb::ReferencePoint>>) {
+        self.rgb.restore_references(levels);
     }
 }
 

@@ -66,7 +66,7 @@ const INTENSITY_SCALE: f32 = 1.0 / 255.0;
 const CHUNK: usize = 2048;
 
 /// Where the photometric reference (grey levels and their 3D points) comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum PhotometricReference {
     /// The model prediction's fused colour (frame-to-model).
     #[default]
@@ -77,7 +77,7 @@ pub enum PhotometricReference {
 }
 
 /// Settings of the photometric term.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PhotometricConfig {
     /// Reference image.
     pub reference: PhotometricReference,
@@ -186,6 +186,22 @@ impl RgbWorkspace {
                     });
                 }
             }
+        }
+    }
+
+    /// The reference pixels of every level, coarsest last: with
+    /// [`PhotometricReference::LastFrame`] the memory of the last tracked
+    /// frame (for saving a session).
+    pub fn references(&self) -> impl Iterator<Item = &[ReferencePoint]> {
+        self.levels.iter().map(|l| &l.references[..])
+    }
+
+    /// Restores the reference pixels of every level as
+    /// [`Self::references`] gave them.
+    pub fn restore_references(&mut self, levels: Vec<Vec<ReferencePoint>>) {
+        self.levels.resize_with(levels.len(), LevelBuffers::default);
+        for (buffers, references) in self.levels.iter_mut().zip(levels) {
+            buffers.references = references;
         }
     }
 

@@ -12,7 +12,7 @@ use glam::{DAffine3, Vec3};
 use rayon::prelude::*;
 
 /// When the sparse estimate runs, and how results are judged.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct VerifyConfig {
     /// Features, matching and RANSAC.
     pub features: FeatureConfig,

@@ -3,6 +3,8 @@
 
 #![allow(dead_code)]
 
+pub mod revisit;
+
 use glam::DAffine3;
 use std::path::{Path, PathBuf};
 use surfel_slam::dataset::{read_frame, Sequence};

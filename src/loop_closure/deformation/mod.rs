@@ -26,7 +26,7 @@ use crate::random::SplitMix;
 pub const MAX_INFLUENCE: usize = 8;
 
 /// Settings of the graph and its optimisation.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DeformConfig {
     /// Nodes sampled from the map (evenly in time order); fewer when there
     /// are fewer finite samples.

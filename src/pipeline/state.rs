@@ -1,0 +1,228 @@
+//! The pipeline's state that decides later frames, taken out to save a
+//! session and put back to load one (`crate::session`). Everything else is
+//! per-frame scratch, or re-derived here bit for bit: the model prediction
+//! is rendered again from the restored map exactly as the last fused frame
+//! rendered it (same map, pose, measured points and frame counts), the
+//! fern index is rebuilt from the keyframes' codes, the re-acquisition
+//! tracker from the configuration.
+
+use super::{Pipeline, PipelineError, SlamConfig, VerdictCounts};
+use crate::fusion::{DepthTiles, Measured, SurfelMap};
+use crate::loop_closure::ferns::Keyframe;
+use crate::noise::SensorNoise;
+use crate::track::rgb::{PhotometricReference, ReferencePoint};
+use crate::track::TrackerMode;
+use glam::{DAffine3, Vec3};
+use std::ops::Range;
+
+/// The pipeline's small values that later frames read.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PipelineScalars {
+    /// Frames accepted so far (the next frame's index).
+    pub frames: u32,
+    /// Verdict counts and the lost streak.
+    pub counts: VerdictCounts,
+    /// Pose of the last fused frame (`world_from_camera`, metres).
+    pub last_good: Option<DAffine3>,
+    /// `previous_from_current` of the last two fused frames in a row.
+    pub velocity: Option<DAffine3>,
+    /// Loop closures, global ones, frame of the last global one.
+    pub loop_counters: (u32, u32, Option<u32>),
+    /// The first depth image was checked against the depth settings.
+    pub depth_checked: bool,
+    /// Tracker and fusion noise models as configured, before the first
+    /// frame's clean-depth check chose the ones in the configuration.
+    pub configured_noise: (SensorNoise, SensorNoise),
+}
+
+/// The last fused frame as the sparse estimator keeps it: working colour
+/// (RGB8) and camera-frame points (metres, `ZERO` where no depth).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LastFusedFrame<C, V> {
+    /// RGB8, `width x height`.
+    pub rgb: C,
+    /// Camera-frame points, metres.
+    pub vertices: V,
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+}
+
+/// The pipeline's state, borrowed ([`Pipeline::state`]).
+#[derive(Debug)]
+pub struct StateView<'a> {
+    /// The configuration in use (noise models as chosen at frame 0).
+    pub config: &'a SlamConfig,
+    /// Counters and poses.
+    pub scalars: PipelineScalars,
+    /// The surfel map.
+    pub map: &'a SurfelMap,
+    /// The spatial order's sorted runs.
+    pub runs: &'a [Range<usize>],
+    /// `(timestamp, world_from_camera)` per frame, as bent by loop closures.
+    pub trajectory: &'a [(f64, DAffine3)],
+    /// The same as tracked.
+    pub online_trajectory: &'a [(f64, DAffine3)],
+    /// The fern keyframes, oldest first.
+    pub keyframes: &'a [Keyframe],
+    /// The last fused frame (none before the first).
+    pub last_fused: Option<LastFusedFrame<&'a [u8], &'a [Vec3]>>,
+    /// The photometric term's frame memory per level (empty unless the
+    /// tracker reads the last frame).
+    pub photometric: Vec<&'a [ReferencePoint]>,
+}
+
+/// The pipeline's state, owned ([`Pipeline::from_state`]); the fields as
+/// in [`StateView`].
+#[derive(Debug)]
+#[allow(missing_docs)]
+pub struct PipelineState {
+    pub config: SlamConfig,
+    pub scalars: PipelineScalars,
+    pub map: SurfelMap,
+    pub runs: Vec<Range<usize>>,
+    pub trajectory: Vec<(f64, DAffine3)>,
+    pub online_trajectory: Vec<(f64, DAffine3)>,
+    pub keyframes: Vec<Keyframe>,
+    pub last_fused: Option<LastFusedFrame<Vec<u8>, Vec<Vec3>>>,
+    pub photometric: Vec<Vec<ReferencePoint>>,
+}
+
+/// Whether the tracker keeps the last frame for its photometric term.
+fn remembers_frames(config: &SlamConfig) -> bool {
+    config.tracker.mode != TrackerMode::Icp
+        && config.tracker.photometric.reference == PhotometricReference::LastFrame
+}
+
+impl Pipeline {
+    /// Everything a session file holds, borrowed.
+    #[must_use]
+    pub fn state(&self) -> StateView<'_> {
+        let photometric = if remembers_frames(&self.config) {
+            self.tracker.photometric_memory().collect()
+        } else {
+            Vec::new()
+        };
+        let last_fused = (self.frame_index > 0)
+            .then(|| self.sparse.reference_frame())
+            .flatten()
+            .map(|(rgb, vertices, width, height)| LastFusedFrame {
+                rgb,
+                vertices,
+                width,
+                height,
+            });
+        StateView {
+            config: &self.config,
+            scalars: PipelineScalars {
+                frames: self.frame_index,
+                counts: self.counts,
+                last_good: self.last_good,
+                velocity: self.velocity,
+                loop_counters: self.loop_closer.counters(),
+                depth_checked: self.settings_check.depth_checked,
+                configured_noise: self.configured_noise,
+            },
+            map: &self.map,
+            runs: self.order.runs(),
+            trajectory: &self.trajectory,
+            online_trajectory: &self.online_trajectory,
+            keyframes: self.relocaliser.database().keyframes(),
+            last_fused,
+            photometric,
+        }
+    }
+
+    /// A pipeline in `state`, which then continues as the pipeline it was
+    /// taken from would have. Refuses a state whose parts do not fit
+    /// together (naming the part).
+    pub fn from_state(state: PipelineState) -> Result<Self, PipelineError> {
+        let bad = |what: String| PipelineError::InvalidConfig(format!("saved state: {what}"));
+        let s = state.scalars;
+        let mut p = Pipeline::new(state.config)?;
+        let frames = s.frames as usize;
+        if state.trajectory.len() != frames || state.online_trajectory.len() != frames {
+            return Err(bad(format!(
+                "{} and {} poses for {frames} frames",
+                state.trajectory.len(),
+                state.online_trajectory.len()
+            )));
+        }
+        let counted = s.counts.fused() + s.counts.lost;
+        if counted != s.frames || s.counts.lost_streak > s.counts.lost {
+            return Err(bad(format!(
+                "verdict counts {:?} for {frames} frames",
+                s.counts
+            )));
+        }
+        p.order
+            .restore_runs(state.runs, state.map.len())
+            .map_err(bad)?;
+        p.relocaliser
+            .database_mut()
+            .restore_keyframes(state.keyframes)
+            .map_err(|e| bad(e.to_string()))?;
+        p.map = state.map;
+        p.order.reserve_for(&p.map);
+        p.trajectory = state.trajectory;
+        p.online_trajectory = state.online_trajectory;
+        p.frame_index = s.frames;
+        p.counts = s.counts;
+        p.last_good = s.last_good;
+        p.velocity = s.velocity;
+        p.loop_closer.restore_counters(s.loop_counters);
+        p.settings_check.depth_checked = s.depth_checked;
+        p.configured_noise = s.configured_noise;
+        if remembers_frames(&p.config) {
+            p.tracker.restore_photometric_memory(state.photometric);
+        }
+        if s.frames > 0 {
+            let last = state
+                .last_fused
+                .ok_or_else(|| bad("no last fused frame".into()))?;
+            p.restore_last_fused(&last).map_err(bad)?;
+        }
+        Ok(p)
+    }
+
+    /// The sparse estimator's reference and the model prediction, as the
+    /// last fused frame (`last`) left them.
+    fn restore_last_fused(
+        &mut self,
+        last: &LastFusedFrame<Vec<u8>, Vec<Vec3>>,
+    ) -> Result<(), String> {
+        let k = self.config.working_intrinsics();
+        if (last.width, last.height) != (k.width, k.height) {
+            return Err(format!(
+                "last frame of {}x{} for a {}x{} camera",
+                last.width, last.height, k.width, k.height
+            ));
+        }
+        self.sparse
+            .restore_reference(&last.rgb, &last.vertices, last.width, last.height)
+            .map_err(|e| e.to_string())?;
+        let pose = self.last_good.ok_or("no pose of the last fused frame")?;
+        // The frame `predict` ran on: the last one before the lost streak;
+        // its warm-up count did not include it yet.
+        let index = self.frame_index - 1 - self.counts.lost_streak;
+        let fused = self.counts.fused().saturating_sub(1);
+        let mut tiles = DepthTiles::default();
+        tiles.build(&last.vertices, k.width);
+        let fusion_cfg = self.config.fusion;
+        let map = &self.map;
+        self.prediction.render(
+            map,
+            &pose,
+            &k,
+            (fusion_cfg.depth_gate_m, self.config.depth.max_m),
+            Measured {
+                vertices: &last.vertices,
+                tiles: &tiles,
+            },
+            fusion_cfg.active_at(index),
+            |i| fusion_cfg.predicts(map, i, fused),
+        );
+        Ok(())
+    }
+}

@@ -1,0 +1,34 @@
+//! Why a session could not be saved or loaded.
+
+use thiserror::Error;
+
+/// Why a session file was refused (nothing loaded is changed) or could not
+/// be written.
+#[derive(Debug, Error, Clone, PartialEq, Eq)]
+pub enum SessionError {
+    /// The file ends early: it was cut while being written or copied.
+    #[error("the session file is truncated: {0}")]
+    Truncated(String),
+    /// The file is whole but its contents are damaged or do not fit
+    /// together (the message names the part).
+    #[error("the session file is corrupt: {0}")]
+    Corrupt(String),
+    /// Written by a newer surfel-slam, in a format version this build does
+    /// not read.
+    #[error("the session file has format version {found}, newer than this build reads (up to {supported}): open it with a newer surfel-slam")]
+    FutureVersion {
+        /// The file's format version.
+        found: u32,
+        /// The newest version this build reads.
+        supported: u32,
+    },
+    /// The session was saved for another camera than the one in use.
+    #[error("the session was saved for another camera: {0}")]
+    CameraMismatch(String),
+    /// Not a session file at all (another kind of file).
+    #[error("not a surfel-slam session file: {0}")]
+    NotASession(String),
+    /// Writing failed (the message says why: disk full, permissions, ...).
+    #[error("could not write the session: {0}")]
+    Write(String),
+}
