@@ -3,17 +3,21 @@
 //! summary line.
 //!
 //! Phases of [`run`], in order: `open_sequence`, `select_frames`,
-//! `checked_mesh_config`, `start_pipeline`, `track_frames`, `write_outputs`,
-//! `print_summary`.
+//! `checked_mesh_config`, `checked_session_path`, `start_pipeline` (with
+//! `--load`, the session replaces the new pipeline), `track_frames`,
+//! `write_outputs` (with `--save`, the session), `print_summary`.
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
-use std::path::PathBuf;
+use std::fs::File;
+use std::io::{BufReader, BufWriter};
+use std::path::{Path, PathBuf};
 use surfel_slam::dataset::{trajectory, DatasetSource, FrameEntry, Sequence};
 use surfel_slam::eval::ate;
 use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::mesh::MeshConfig;
+use surfel_slam::session;
 use surfel_slam::{FrameReport, Pipeline, SlamConfig, Verdict};
 
 use crate::loop_log::LoopLog;
@@ -70,6 +74,15 @@ pub struct RunArgs {
     /// Write a triangle mesh of the confident surfels here (.glb, .ply or .obj).
     #[arg(long, value_parser = mesh_path)]
     mesh: Option<PathBuf>,
+    /// Save the session here when the run ends (a zip: map, keyframes,
+    /// trajectory, settings; `--load` continues from it).
+    #[arg(long)]
+    save: Option<PathBuf>,
+    /// Continue the session saved in this file (`--save`): its map,
+    /// trajectory and settings; the frames `--first`/`--count` select are
+    /// pushed after its last one. The camera must be the session's.
+    #[arg(long)]
+    load: Option<PathBuf>,
     /// Voxel edge of the mesh, metres (0.001 to 1).
     #[arg(long, default_value_t = MeshConfig::default().voxel_size_m, allow_negative_numbers = true, value_parser = voxel_size)]
     voxel_size: f32,
@@ -88,6 +101,7 @@ pub fn run(args: &RunArgs) -> Result<u8> {
     let (mut source, sequence) = open_sequence(args)?;
     let frames = select_frames(&sequence, args)?;
     let mesh_config = checked_mesh_config(args)?;
+    checked_session_path(args)?;
     let mut slam = start_pipeline(&mut source, &sequence, &frames, args)?;
     let mut loop_log = args
         .loop_log
@@ -173,7 +187,48 @@ fn start_pipeline(
     config.intrinsics.height = height;
     let mut slam = Pipeline::new(config)?;
     check_settings(source, sequence, first, args, &mut slam);
+    if let Some(path) = &args.load {
+        let file = File::open(path).with_context(|| format!("opening {}", path.display()))?;
+        session::load_into(&mut slam, BufReader::new(file))
+            .with_context(|| format!("loading {}", path.display()))?;
+    }
     Ok(slam)
+}
+
+/// Refuses, before the run, a `--save` path whose folder does not exist
+/// or that names a folder: the run's result would be lost at its end.
+fn checked_session_path(args: &RunArgs) -> Result<()> {
+    let Some(path) = &args.save else {
+        return Ok(());
+    };
+    if path.is_dir() {
+        bail!("--save {}: is a folder, not a file", path.display());
+    }
+    let parent = path.parent().filter(|p| !p.as_os_str().is_empty());
+    if parent.is_some_and(|p| !p.is_dir()) {
+        bail!("--save {}: its folder does not exist", path.display());
+    }
+    Ok(())
+}
+
+/// Writes the session to `path` through a temporary file beside it, so
+/// that a failed save leaves an earlier file (perhaps the one loaded) whole.
+fn save_session(slam: &Pipeline, path: &Path) -> Result<()> {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".partial");
+    let partial = path.with_file_name(name);
+    let written = File::create(&partial)
+        .map_err(anyhow::Error::from)
+        .and_then(|f| {
+            let out = session::save(slam, BufWriter::new(f))?;
+            out.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+            Ok(())
+        })
+        .and_then(|()| Ok(std::fs::rename(&partial, path)?));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&partial);
+    }
+    written.with_context(|| format!("saving the session to {}", path.display()))
 }
 
 /// Warns (stderr) about camera settings that look wrong for the data: the
@@ -345,6 +400,9 @@ fn write_outputs(args: &RunArgs, slam: &Pipeline, mesh_config: MeshConfig) -> Re
     if let Some(path) = &args.ply {
         std::fs::write(path, write_surfel_ply(slam.map()))
             .with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let Some(path) = &args.save {
+        save_session(slam, path)?;
     }
     if let Some(path) = &args.mesh {
         let config = MeshConfig {
