@@ -73,19 +73,26 @@ pub struct StateView<'a> {
     pub photometric: Vec<&'a [ReferencePoint]>,
 }
 
-/// The pipeline's state, owned ([`Pipeline::from_state`]); the fields as
-/// in [`StateView`].
+/// The pipeline's state, owned ([`Pipeline::from_state`]).
 #[derive(Debug)]
-#[allow(missing_docs)]
 pub struct PipelineState {
+    /// The configuration (noise models as chosen at frame 0).
     pub config: SlamConfig,
+    /// Counters and poses.
     pub scalars: PipelineScalars,
+    /// The surfel map, its boxes and schedule restored.
     pub map: SurfelMap,
+    /// The spatial order's sorted runs.
     pub runs: Vec<Range<usize>>,
+    /// `(timestamp, world_from_camera)` per frame, as bent by loop closures.
     pub trajectory: Vec<(f64, DAffine3)>,
+    /// The same as tracked.
     pub online_trajectory: Vec<(f64, DAffine3)>,
+    /// The fern keyframes, oldest first.
     pub keyframes: Vec<Keyframe>,
+    /// The last fused frame (required after the first frame).
     pub last_fused: Option<LastFusedFrame<Vec<u8>, Vec<Vec3>>>,
+    /// The photometric term's frame memory per level.
     pub photometric: Vec<Vec<ReferencePoint>>,
 }
 
