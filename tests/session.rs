@@ -171,7 +171,7 @@ fn a_loaded_session_continues_exactly_as_the_uninterrupted_run() {
     assert!(
         straight_reports[out + 30..]
             .iter()
-            .any(|r| r.loop_registration.is_some() || r.loop_global_looked),
+            .any(|r| r.loop_outcome.registration.is_some() || r.loop_outcome.global_looked),
         "loop checks ran after the second save point"
     );
     assert!(matches!(
