@@ -203,3 +203,35 @@ impl Manifest {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::CameraPreset;
+
+    #[test]
+    fn every_preset_configuration_reads_back_the_same() {
+        for preset in CameraPreset::ALL {
+            let mut config = SlamConfig::from_preset(preset);
+            // Values whose shortest decimal is long.
+            config.intrinsics.fx = 1.0 / 3.0 + 500.0;
+            config.loop_closure.deform.weight_constraint = 0.1 + 0.2;
+            let text = serde_json::to_string(&config).unwrap();
+            let back: SlamConfig = serde_json::from_str(&text).unwrap();
+            assert_eq!(back, config, "{preset:?}");
+            let bits =
+                |c: &SlamConfig| (c.intrinsics.fx.to_bits(), c.tracker.noise.base_m.to_bits());
+            assert_eq!(bits(&back), bits(&config));
+        }
+    }
+
+    #[test]
+    fn a_camera_difference_names_the_value() {
+        let config = SlamConfig::from_preset(CameraPreset::TumFr1);
+        let mut other = config.clone();
+        other.depth.scale = 1000.0;
+        let d = Camera::of(&config).difference(&Camera::of(&other)).unwrap();
+        assert_eq!(d, "depth scale 5000 in the session, 1000 in use");
+        assert_eq!(Camera::of(&config).difference(&Camera::of(&config)), None);
+    }
+}
