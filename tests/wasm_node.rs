@@ -256,6 +256,30 @@ fn window_sequence_matches_native() {
     check_parity("window", &trajectory_of(&slam));
 }
 
+/// Through a loop closure (the revisit sequence up to just past the global
+/// check's closure, `wasm_common::revisit_sequence`): the poses each frame
+/// reported and the trajectory the deformation bent are native's bits. The
+/// library is driven directly: the sequence's loop settings (a 30-frame
+/// window, global looks every 5 frames) have no JS config keys.
+#[wasm_bindgen_test]
+fn revisit_sequence_through_a_loop_closure_matches_native() {
+    let (config, frames) = revisit_sequence();
+    let mut pipeline = surfel_slam::Pipeline::new(config).expect("valid config");
+    let mut closed_at = Vec::new();
+    let mut online = Vec::new();
+    for (i, f) in frames.iter().enumerate() {
+        let r = pipeline.push_frame(f, i as f64).expect("frame accepted");
+        if r.loop_outcome.closed {
+            closed_at.push(i);
+        }
+        online.push((r.timestamp, r.world_from_camera));
+    }
+    console_log!("revisit: wasm closed the loop at frames {closed_at:?}");
+    assert!(!closed_at.is_empty(), "no loop closed");
+    check_parity("revisit-online", &online);
+    check_parity("revisit", &pipeline.trajectory().to_vec());
+}
+
 #[wasm_bindgen_test]
 fn real_frames_track_and_match_native() {
     let dir = data_dir(REAL_SEQUENCE);

@@ -171,6 +171,36 @@ fn window_reference() {
     );
 }
 
+/// The revisit sequence up to just past its loop closure
+/// (`wasm_common::revisit_sequence`): the global check closes the loop
+/// and the deformation graph bends map and trajectory; the wasm module
+/// must give the same poses, before the bend (`revisit-online`, each
+/// frame's report) and after it (`revisit`, the bent trajectory).
+#[test]
+fn revisit_reference() {
+    let (config, frames) = revisit_sequence();
+    let (trajectory, online, closed_at) = single_thread(|| {
+        let mut pipeline = Pipeline::new(config).expect("valid config");
+        let mut closed_at = Vec::new();
+        let mut online = Vec::new();
+        for (i, f) in frames.iter().enumerate() {
+            let r = pipeline.push_frame(f, i as f64).expect("frame accepted");
+            if r.loop_outcome.closed {
+                closed_at.push(i);
+            }
+            online.push((r.timestamp, r.world_from_camera));
+        }
+        (pipeline.trajectory().to_vec(), online, closed_at)
+    });
+    write_reference("revisit", &trajectory);
+    write_reference("revisit-online", &online);
+    eprintln!("native revisit sequence: loop closed at frames {closed_at:?}");
+    assert!(
+        !closed_at.is_empty(),
+        "no loop closed: the deformation's solve is not compared"
+    );
+}
+
 #[test]
 fn real_frames_reference() {
     let dir = data_dir(REAL_SEQUENCE);

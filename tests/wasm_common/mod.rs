@@ -29,7 +29,12 @@
 
 use glam::{DAffine3, DQuat};
 use surfel_slam::synthetic;
-use surfel_slam::{DepthSettings, SlamConfig};
+use surfel_slam::{DepthSettings, Intrinsics, RgbdFrame, SlamConfig};
+
+/// The revisit sequence of `tests/determinism.rs` (shared with the
+/// native/wasm parity check: see [`revisit_sequence`]).
+#[path = "../common/revisit.rs"]
+pub mod revisit;
 
 /// Frames of the synthetic sequence.
 pub const SYNTHETIC_FRAMES: usize = 20;
@@ -106,6 +111,7 @@ pub fn is_fingerprinted(relative: &str) -> bool {
         || relative == "Cargo.lock"
         || (relative.starts_with("src/") && relative.ends_with(".rs"))
         || (relative.starts_with("tests/wasm_common/") && relative.ends_with(".rs"))
+        || relative == "tests/common/revisit.rs"
 }
 
 /// FNV-1a over `(path, contents)` in path order: identifies the sources.
@@ -245,6 +251,30 @@ pub fn window_sequence() -> (SlamConfig, Vec<RawFrame>, Vec<(f64, DAffine3)>) {
         ground_truth.push((timestamp, origin * pose));
     }
     (config, frames, ground_truth)
+}
+
+/// Config for synthetic frames rendered with `k` (5000 units/m, 0.3..8 m);
+/// the same as `tests/common`'s, which [`revisit`] builds on.
+#[must_use]
+pub fn synthetic_config(k: Intrinsics) -> SlamConfig {
+    let mut config = SlamConfig::from_preset(surfel_slam::CameraPreset::TumFr3);
+    config.intrinsics = k;
+    config.depth = synthetic::depth_settings();
+    config
+}
+
+/// Frames of [`revisit`] compared: the way out and back, which the global
+/// check closes at frame 90 (the deformation graph's sparse solve runs),
+/// and five frames tracked in the bent map after it.
+pub const REVISIT_FRAMES: usize = 96;
+
+/// The first [`REVISIT_FRAMES`] frames of [`revisit`] with its config;
+/// frame `i` is pushed with timestamp `i` seconds.
+pub fn revisit_sequence() -> (SlamConfig, Vec<RgbdFrame>) {
+    let config = revisit::config();
+    let mut frames = revisit::frames(&config);
+    frames.truncate(REVISIT_FRAMES);
+    (config, frames)
 }
 
 /// The first pose (index) at which two trajectories' bits differ

@@ -1,6 +1,6 @@
 //! Levenberg-damped Gauss-Newton for the deformation graph on the sparse
 //! normal equations (`faer`'s sparse Cholesky with its fill-reducing
-//! ordering).
+//! ordering, simplicial: see [`NormalEquations::solve`]).
 //!
 //! Unknowns: 12 per node, the rows of `R` (`3a + b` for `R[a][b]`) then `t`
 //! (`9 + a`). Only the rigidity rows are nonlinear; the smoothness and
@@ -12,8 +12,13 @@
 use super::{
     Constraint, Corrections, DeformError, DeformReport, DeformationGraph, Influence, MAX_INFLUENCE,
 };
-use faer::linalg::solvers::Solve;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, SymmetricOrdering,
+};
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMat, Triplet};
+use faer::{Conj, Par, Side};
 use glam::{DMat3, DVec3};
 use std::collections::HashMap;
 
@@ -160,11 +165,42 @@ impl Normal {
         }
         let h = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets)
             .map_err(|_| DeformError::Singular)?;
-        let llt = h
-            .sp_cholesky(faer::Side::Lower)
+        // Simplicial, one thread: plain scalar loops, the same bits on every
+        // target. `sp_cholesky` picks the supernodal factorisation for this
+        // graph, whose dense kernels `faer` chooses at run time (AVX2 and
+        // FMA on x86-64, simd128 on wasm): native and wasm then differ in
+        // the last bits from the first closure on (`docs/performance.md#determinism`).
+        let symbolic = factorize_symbolic_cholesky(
+            h.symbolic(),
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            CholeskySymbolicParams {
+                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
+                ..Default::default()
+            },
+        )
+        .map_err(|_| DeformError::Singular)?;
+        let mut values = vec![0.0; symbolic.len_val()];
+        let mut buffer = MemBuffer::try_new(
+            symbolic
+                .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+                .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)),
+        )
+        .map_err(|_| DeformError::Singular)?;
+        let stack = MemStack::new(&mut buffer);
+        let llt = symbolic
+            .factorize_numeric_llt(
+                &mut values,
+                h.as_ref(),
+                Side::Lower,
+                Default::default(),
+                Par::Seq,
+                stack,
+                Default::default(),
+            )
             .map_err(|_| DeformError::Singular)?;
-        let rhs = faer::Col::<f64>::from_fn(n, |i| -self.gradient[i]);
-        let x = llt.solve(&rhs);
+        let mut x = faer::Col::<f64>::from_fn(n, |i| -self.gradient[i]);
+        llt.solve_in_place_with_conj(Conj::No, x.as_mat_mut(), Par::Seq, stack);
         let step: Vec<f64> = (0..n).map(|i| x[i]).collect();
         if step.iter().all(|v| v.is_finite()) {
             Ok(step)
