@@ -4,7 +4,8 @@
 //!
 //! - a synthetic sequence tracked through `Slam.pushRaw` has a small ATE and
 //!   the same poses as the native reference, bit for bit (`tests/wasm_common`
-//!   explains how); so has a noisy one past the active window;
+//!   explains how); so has a noisy one past the active window, and one
+//!   through a loop closure (the deformation graph's sparse solve);
 //! - real ICL-NUIM frames read from `../shared/data` with Node's `fs` and
 //!   pushed as PNG bytes track, have a small ATE and match native
 //!   (skipped with a message when `../shared` is absent);

@@ -1,6 +1,7 @@
 //! Native half of the native/wasm parity check (see `tests/wasm_common`):
-//! runs the synthetic sequence, the window sequence and the first ICL-NUIM
-//! frames on a single-thread rayon pool and writes the poses' bits to
+//! runs the synthetic sequence, the window sequence, the revisit sequence
+//! to just past its loop closure and the first ICL-NUIM frames on a
+//! single-thread rayon pool and writes the poses' bits to
 //! `target/wasm-parity/`, where `tests/wasm_node.rs` (wasm32, Node)
 //! compares its own against them. For the window sequence it also writes
 //! the frames, the JS config and the per-frame report poses, which
