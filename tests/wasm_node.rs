@@ -278,7 +278,7 @@ fn revisit_sequence_through_a_loop_closure_matches_native() {
     console_log!("revisit: wasm closed the loop at frames {closed_at:?}");
     assert!(!closed_at.is_empty(), "no loop closed");
     check_parity("revisit-online", &online);
-    check_parity("revisit", &pipeline.trajectory().to_vec());
+    check_parity("revisit", pipeline.trajectory());
 }
 
 #[wasm_bindgen_test]
