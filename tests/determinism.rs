@@ -14,7 +14,7 @@
 mod common;
 
 use common::revisit::{config, frames};
-use glam::DAffine3;
+use common::run_bits::{first_difference, RunBits};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use surfel_slam::{FrameReport, Pipeline, RgbdFrame, SlamConfig, StageTimings, Verdict};
@@ -23,28 +23,8 @@ use surfel_slam::{FrameReport, Pipeline, RgbdFrame, SlamConfig, StageTimings, Ve
 /// surfel array of the map, and what each frame reported (timings aside).
 #[derive(PartialEq, Eq)]
 struct Outcome {
-    trajectory: Vec<[u64; 13]>,
-    online_trajectory: Vec<[u64; 13]>,
-    positions: Vec<[u32; 3]>,
-    normals: Vec<[u32; 3]>,
-    colours: Vec<[u8; 4]>,
-    radii: Vec<u32>,
-    confidences: Vec<u32>,
-    first_seen: Vec<u32>,
-    last_seen: Vec<u32>,
+    run: RunBits,
     reports: Vec<String>,
-}
-
-fn pose_bits((t, pose): &(f64, DAffine3)) -> [u64; 13] {
-    let mut out = [t.to_bits(); 13];
-    for (o, v) in out[1..].iter_mut().zip(pose.to_cols_array()) {
-        *o = v.to_bits();
-    }
-    out
-}
-
-fn vec3_bits(v: &glam::Vec3) -> [u32; 3] {
-    v.to_array().map(f32::to_bits)
 }
 
 /// A frame's report without its timings (`Debug` prints floats exactly).
@@ -89,17 +69,8 @@ fn play(config: &SlamConfig, frames: &[RgbdFrame]) -> (Outcome, Coverage) {
         .enumerate()
         .map(|(i, f)| slam.push_frame(f, i as f64).expect("frame accepted"))
         .collect();
-    let map = slam.map();
     let outcome = Outcome {
-        trajectory: slam.trajectory().iter().map(pose_bits).collect(),
-        online_trajectory: slam.online_trajectory().iter().map(pose_bits).collect(),
-        positions: map.positions().iter().map(vec3_bits).collect(),
-        normals: map.normals().iter().map(vec3_bits).collect(),
-        colours: map.colours().to_vec(),
-        radii: map.radii().iter().map(|r| r.to_bits()).collect(),
-        confidences: map.confidences().iter().map(|c| c.to_bits()).collect(),
-        first_seen: map.first_seen().to_vec(),
-        last_seen: map.last_seen().to_vec(),
+        run: RunBits::of(&slam),
         reports: reports.iter().map(report_text).collect(),
     };
     (outcome, Coverage::of(&reports))
@@ -113,51 +84,12 @@ fn in_pool<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
         .install(f)
 }
 
-/// Where two lists first differ, if they do.
-fn first_difference<T: PartialEq + std::fmt::Debug>(
-    name: &str,
-    a: &[T],
-    b: &[T],
-) -> Option<String> {
-    if a.len() != b.len() {
-        return Some(format!("{name}: {} vs {} entries", a.len(), b.len()));
-    }
-    let i = a.iter().zip(b).position(|(x, y)| x != y)?;
-    let (x, y) = (format!("{:?}", a[i]), format!("{:?}", b[i]));
-    // Where the two texts part, with some context before.
-    let at = x.bytes().zip(y.bytes()).take_while(|(p, q)| p == q).count();
-    let from = x[..at].char_indices().rev().nth(60).map_or(0, |(c, _)| c);
-    let shown = |t: &str| {
-        t.get(from..)
-            .unwrap_or(t)
-            .chars()
-            .take(160)
-            .collect::<String>()
-    };
-    Some(format!("{name}[{i}]: ...{} vs ...{}", shown(&x), shown(&y)))
-}
-
 /// Every difference between two outcomes, one line each (empty: the same bits).
 fn differences(a: &Outcome, b: &Outcome) -> Vec<String> {
-    [
-        first_difference("reports", &a.reports, &b.reports),
-        first_difference("trajectory", &a.trajectory, &b.trajectory),
-        first_difference(
-            "online trajectory",
-            &a.online_trajectory,
-            &b.online_trajectory,
-        ),
-        first_difference("positions", &a.positions, &b.positions),
-        first_difference("normals", &a.normals, &b.normals),
-        first_difference("colours", &a.colours, &b.colours),
-        first_difference("radii", &a.radii, &b.radii),
-        first_difference("confidences", &a.confidences, &b.confidences),
-        first_difference("first_seen", &a.first_seen, &b.first_seen),
-        first_difference("last_seen", &a.last_seen, &b.last_seen),
-    ]
-    .into_iter()
-    .flatten()
-    .collect()
+    first_difference("reports", &a.reports, &b.reports)
+        .into_iter()
+        .chain(a.run.differences(&b.run))
+        .collect()
 }
 
 fn assert_same(what: &str, reference: &Outcome, other: &Outcome) {
@@ -229,7 +161,7 @@ fn five_runs_on_one_two_and_four_threads_under_load_give_the_same_trajectory_and
     let _load = Load::start();
     let (first, coverage) = in_pool(1, || play(&config, &frames));
     check_coverage(&coverage);
-    assert_eq!(first.trajectory.len(), frames.len());
+    assert_eq!(first.run.trajectory.len(), frames.len());
     for (run, threads) in [2, 4, 2, 4].into_iter().enumerate() {
         let (again, _) = in_pool(threads, || play(&config, &frames));
         assert_same(

@@ -17,73 +17,14 @@
 mod common;
 
 use common::revisit::{config, frames};
-use glam::DAffine3;
+use common::run_bits::RunBits as Bits;
 use std::io::{Cursor, Read, Write};
 use surfel_slam::session::{self, SessionError};
 use surfel_slam::{FrameReport, Pipeline, RgbdFrame, SlamConfig, StageTimings, Verdict};
 
-/// A run's state as bits: both trajectories and every surfel array.
-#[derive(PartialEq, Eq, Debug)]
-struct Bits {
-    trajectory: Vec<[u64; 13]>,
-    online_trajectory: Vec<[u64; 13]>,
-    positions: Vec<[u32; 3]>,
-    normals: Vec<[u32; 3]>,
-    colours: Vec<[u8; 4]>,
-    radii: Vec<u32>,
-    confidences: Vec<u32>,
-    first_seen: Vec<u32>,
-    last_seen: Vec<u32>,
-}
-
-fn pose_bits((t, pose): &(f64, DAffine3)) -> [u64; 13] {
-    let mut out = [t.to_bits(); 13];
-    for (o, v) in out[1..].iter_mut().zip(pose.to_cols_array()) {
-        *o = v.to_bits();
-    }
-    out
-}
-
-fn bits(slam: &Pipeline) -> Bits {
-    let map = slam.map();
-    let v3 = |v: &glam::Vec3| v.to_array().map(f32::to_bits);
-    Bits {
-        trajectory: slam.trajectory().iter().map(pose_bits).collect(),
-        online_trajectory: slam.online_trajectory().iter().map(pose_bits).collect(),
-        positions: map.positions().iter().map(v3).collect(),
-        normals: map.normals().iter().map(v3).collect(),
-        colours: map.colours().to_vec(),
-        radii: map.radii().iter().map(|r| r.to_bits()).collect(),
-        confidences: map.confidences().iter().map(|c| c.to_bits()).collect(),
-        first_seen: map.first_seen().to_vec(),
-        last_seen: map.last_seen().to_vec(),
-    }
-}
-
 /// Where two runs first differ (a readable failure rather than a dump).
 fn first_difference(a: &Bits, b: &Bits) -> Option<String> {
-    fn at<T: PartialEq + std::fmt::Debug>(name: &str, a: &[T], b: &[T]) -> Option<String> {
-        if a.len() != b.len() {
-            return Some(format!("{name}: {} against {} entries", a.len(), b.len()));
-        }
-        let i = a.iter().zip(b).position(|(x, y)| x != y)?;
-        Some(format!("{name}[{i}]: {:?} against {:?}", a[i], b[i]))
-    }
-    at("trajectory", &a.trajectory, &b.trajectory)
-        .or_else(|| {
-            at(
-                "online trajectory",
-                &a.online_trajectory,
-                &b.online_trajectory,
-            )
-        })
-        .or_else(|| at("positions", &a.positions, &b.positions))
-        .or_else(|| at("normals", &a.normals, &b.normals))
-        .or_else(|| at("colours", &a.colours, &b.colours))
-        .or_else(|| at("radii", &a.radii, &b.radii))
-        .or_else(|| at("confidences", &a.confidences, &b.confidences))
-        .or_else(|| at("first_seen", &a.first_seen, &b.first_seen))
-        .or_else(|| at("last_seen", &a.last_seen, &b.last_seen))
+    a.differences(b).into_iter().next()
 }
 
 /// A frame's report without its timings (`Debug` prints floats exactly).
@@ -124,7 +65,7 @@ fn a_loaded_session_continues_exactly_as_the_uninterrupted_run() {
     let frames = frames(&config);
     let mut straight = Pipeline::new(config.clone()).unwrap();
     let straight_reports = push_all(&mut straight, &frames, 0);
-    let expected = bits(&straight);
+    let expected = Bits::of(&straight);
     // Out past the active window; on the way back; covered (lost twice).
     let out = common::revisit::OUT;
     let covered_from = 2 * out;
@@ -147,7 +88,7 @@ fn a_loaded_session_continues_exactly_as_the_uninterrupted_run() {
         let mut resumed = session::load(Cursor::new(&bytes)).expect("loads");
         assert_eq!(resumed.frames(), k as u32);
         let reports = push_all(&mut resumed, &frames[k..], k);
-        if let Some(d) = first_difference(&bits(&resumed), &expected) {
+        if let Some(d) = first_difference(&Bits::of(&resumed), &expected) {
             panic!("saved after {k} frames and continued: {d}");
         }
         for (r, s) in reports.iter().zip(&straight_reports[k..]) {
@@ -210,11 +151,11 @@ fn bad_session_files_are_refused_by_kind_and_lose_nothing() {
     let good = save_bytes(&run(&config, &frames[..20]));
     // The pipeline loaded into holds another map, which must survive.
     let mut slam = run(&config, &frames[..12]);
-    let before = bits(&slam);
+    let before = Bits::of(&slam);
     let refuse = |bytes: &[u8], slam: &mut Pipeline| {
         let e = session::load_into(slam, Cursor::new(bytes)).expect_err("refused");
         assert_eq!(
-            bits(slam),
+            Bits::of(slam),
             before,
             "a failed load changed the pipeline ({e})"
         );
@@ -339,7 +280,7 @@ fn the_kitchen_saved_after_frame_250_continues_exactly() {
     push(&mut first, k..n);
     let mut resumed = session::load(Cursor::new(&bytes)).unwrap();
     push(&mut resumed, k..n);
-    if let Some(d) = first_difference(&bits(&resumed), &bits(&first)) {
+    if let Some(d) = first_difference(&Bits::of(&resumed), &Bits::of(&first)) {
         panic!("kitchen saved after frame {}: {d}", k - 1);
     }
     eprintln!(

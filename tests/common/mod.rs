@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod revisit;
+pub mod run_bits;
 
 use glam::DAffine3;
 use std::path::{Path, PathBuf};
