@@ -13,11 +13,10 @@
 //! and pins (the inactive surfels the keyframe's view shows stay), bent
 //! with the same graph: the old map stays, the drifted recent part moves.
 
-use crate::camera::pixel_of;
 use crate::camera::Intrinsics;
 use crate::fusion::{FusionConfig, Measured, Prediction, SurfelMap};
 use crate::preprocess::FramePyramid;
-use crate::track::verify::VerifyConfig;
+use crate::track::verify::{against_surface, Side, VerifyConfig};
 use crate::track::{TrackerConfig, TrackerWorkspace};
 use glam::{DAffine3, Vec3};
 
@@ -458,6 +457,7 @@ impl LoopCloser {
         }
         let camera_from_world = pose.inverse().as_affine3a();
         let positions = map.positions();
+        let frame_z = |i: usize| Some(level.vertices[i].z).filter(|&z| z > 0.0);
         for (pixel, normal) in view.normals.iter().enumerate() {
             if *normal == Vec3::ZERO {
                 continue;
@@ -468,11 +468,11 @@ impl LoopCloser {
             let Some(&p) = positions.get(b) else {
                 continue;
             };
-            let Some((q_z, at)) = pixel_of(&k, camera_from_world.transform_point3(p)) else {
+            let Some((q_z, _, z)) = against_surface(&k, &camera_from_world, p, frame_z) else {
                 continue;
             };
-            let z = level.vertices[at].z;
-            if z > 0.0 && (z - q_z).abs() <= verify.margin_at(q_z) {
+            // The frame measures a point on the old surfel's surface.
+            if verify.side(z, q_z) == Side::OnSurface {
                 self.matched.push(b);
             }
         }

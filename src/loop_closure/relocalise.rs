@@ -17,13 +17,12 @@
 //! Poses are `world_from_camera` (metres); times are frame indices.
 
 use super::ferns::{FernConfig, FernDatabase, FernError, FernFrame, FernMatch, Keyframe};
-use crate::camera::pixel_of;
 use crate::camera::Intrinsics;
 use crate::fusion::{DepthTiles, Measured, Prediction, SurfelMap};
 use crate::preprocess::FramePyramid;
 use crate::preprocess::PyramidLevel;
 use crate::se3;
-use crate::track::verify::{free_space_violation, VerifyConfig};
+use crate::track::verify::{against_surface, free_space_violation, Side, VerifyConfig};
 use crate::track::{track, TrackResult, TrackerConfig, TrackerMode, TrackerWorkspace};
 use glam::{DAffine3, Vec3};
 
@@ -526,20 +525,18 @@ fn see_through_fraction(
     }
     let camera_from_world = world_from_camera.inverse().as_affine3a();
     let (mut seen_through, mut landed) = (0usize, 0usize);
+    let frame_z = |i: usize| Some(level.vertices[i].z).filter(|&z| z > 0.0);
     let width = prediction.intrinsics.map_or(1, |p| p.width.max(1));
     for (i, model) in prediction.vertices.iter().enumerate().step_by(4) {
         if (i / width) % 4 != 0 || *model == Vec3::ZERO {
             continue;
         }
-        let Some((q_z, pixel)) = pixel_of(&k, camera_from_world.transform_point3(*model)) else {
+        let Some((q_z, _, z)) = against_surface(&k, &camera_from_world, *model, frame_z) else {
             continue;
         };
-        let z = level.vertices[pixel].z;
-        if z <= 0.0 {
-            continue;
-        }
         landed += 1;
-        if z > q_z + config.margin_at(q_z) {
+        // The frame's point lies behind the model's surface: seen through it.
+        if config.side(z, q_z) == Side::Behind {
             seen_through += 1;
         }
     }

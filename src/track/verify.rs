@@ -4,11 +4,11 @@
 //! measured where the model saw empty space says the pose is wrong,
 //! whatever the residual of the surfaces that did line up).
 
-use crate::camera::pixel_of;
+use crate::camera::{pixel_of, Intrinsics};
 use crate::features::FeatureConfig;
 use crate::fusion::Prediction;
 use crate::se3;
-use glam::{DAffine3, Vec3};
+use glam::{Affine3A, DAffine3, Vec3};
 use rayon::prelude::*;
 
 /// When the sparse estimate runs, and how results are judged.
@@ -97,12 +97,30 @@ impl Default for VerifyConfig {
 
 impl VerifyConfig {
     /// The free-space margin at depth `z`, metres: how far a point may lie
-    /// off a surface at that depth before it counts as another surface
-    /// (every free-space and see-through check uses this one margin).
+    /// off a surface at that depth before it counts as another surface.
     #[inline]
     #[must_use]
     pub fn margin_at(&self, z: f32) -> f32 {
         self.free_space_margin_m + self.free_space_margin_rel * z
+    }
+
+    /// Where a point at depth `point_z` lies against the surface at depth
+    /// `surface_z` on the same camera ray (metres), with the margin taken
+    /// at the surface's depth: the one comparison of every free-space,
+    /// see-through and same-surface check. Each passes the model's depth
+    /// as the surface and the frame's as the point, whichever of the two
+    /// was projected into the other's view.
+    #[inline]
+    #[must_use]
+    pub fn side(&self, point_z: f32, surface_z: f32) -> Side {
+        let margin = self.margin_at(surface_z);
+        if point_z < surface_z - margin {
+            Side::InFreeSpace
+        } else if point_z > surface_z + margin {
+            Side::Behind
+        } else {
+            Side::OnSurface
+        }
     }
 
     /// Whether two `world_from_camera` poses agree within the bounds.
@@ -128,6 +146,37 @@ impl VerifyConfig {
         let (dt, dr) = se3::motion_magnitude(&(a.inverse() * *b));
         dt <= 0.01 && dr.to_degrees() <= 1.0
     }
+}
+
+/// Where a point lies against a measured surface on its ray
+/// ([`VerifyConfig::side`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// In front of the surface by more than the margin: where the surface's
+    /// camera saw empty space.
+    InFreeSpace,
+    /// Within the margin of the surface: the same surface.
+    OnSurface,
+    /// Behind the surface by more than the margin: hidden by it.
+    Behind,
+}
+
+/// A point seen from a camera (`camera_from_point`; the point in any frame,
+/// metres) against the surface that camera's image holds on its ray:
+/// `(point depth, pixel index, surface depth)`, or `None` when the point is
+/// behind the camera, off the image, or `surface_z` has no surface at its
+/// pixel (`None`). Every check that projects points onto another view's
+/// depth goes through here.
+#[inline]
+#[must_use]
+pub fn against_surface(
+    k: &Intrinsics,
+    camera_from_point: &Affine3A,
+    p: Vec3,
+    surface_z: impl Fn(usize) -> Option<f32>,
+) -> Option<(f32, usize, f32)> {
+    let (point_z, pixel) = pixel_of(k, camera_from_point.transform_point3(p))?;
+    surface_z(pixel).map(|z| (point_z, pixel, z))
 }
 
 /// Fraction of the frame points (`vertices`, camera frame, metres, `ZERO`
@@ -161,16 +210,16 @@ pub fn free_space_violation(
                 if p.z <= 0.0 {
                     continue;
                 }
-                let Some((q_z, i)) = pixel_of(&k, model_from_frame.transform_point3(*p)) else {
+                let model_z = |i: usize| {
+                    let model = prediction.vertices[i];
+                    (model != Vec3::ZERO).then(|| model_from_world.transform_point3(model).z)
+                };
+                let Some((q_z, _, z_model)) = against_surface(&k, &model_from_frame, *p, model_z)
+                else {
                     continue;
                 };
-                let model = prediction.vertices[i];
-                if model == Vec3::ZERO {
-                    continue;
-                }
-                let z_model = model_from_world.transform_point3(model).z;
                 landed += 1;
-                if q_z < z_model - config.margin_at(z_model) {
+                if config.side(q_z, z_model) == Side::InFreeSpace {
                     violations += 1;
                 }
             }
