@@ -256,3 +256,41 @@ pub struct TrackingChecks {
     /// frame index of the keyframe it was placed by.
     pub relocalised_from: Option<u32>,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn side_takes_the_margin_at_the_surface() {
+        let config = VerifyConfig::default();
+        // At 2 m the margin is 5 cm + 2 % of 2 m = 9 cm.
+        let margin = config.margin_at(2.0);
+        assert!((margin - 0.09).abs() < 1e-6);
+        assert_eq!(config.side(2.0 - 0.1, 2.0), Side::InFreeSpace);
+        assert_eq!(config.side(2.0 - 0.08, 2.0), Side::OnSurface);
+        assert_eq!(config.side(2.0 + 0.08, 2.0), Side::OnSurface);
+        assert_eq!(config.side(2.0 + 0.1, 2.0), Side::Behind);
+        // The margin is the surface's: 7 cm at 1 m, so a point 8.9 cm
+        // behind a surface at 1 m is behind it, while 8.5 cm behind one at
+        // 2 m is on it.
+        assert_eq!(config.side(1.0 + 0.089, 1.0), Side::Behind);
+        assert_eq!(config.side(2.085, 2.0), Side::OnSurface);
+        assert_eq!(config.side(1.0 - 0.085, 1.0), Side::InFreeSpace);
+    }
+
+    #[test]
+    fn against_surface_needs_a_surface_at_the_pixel() {
+        let k = Intrinsics::new(100.0, 100.0, 50.0, 50.0, 100, 100);
+        let identity = Affine3A::IDENTITY;
+        let p = Vec3::new(0.0, 0.0, 2.0);
+        let hit = against_surface(&k, &identity, p, |i| Some(i as f32));
+        let (z, pixel, surface) = hit.expect("the centre pixel has a surface");
+        assert_eq!(z, 2.0);
+        assert_eq!(pixel, 50 * 100 + 50);
+        assert_eq!(surface, pixel as f32);
+        assert!(against_surface(&k, &identity, p, |_| None).is_none());
+        assert!(against_surface(&k, &identity, -p, |_| Some(1.0)).is_none());
+        assert!(against_surface(&k, &identity, Vec3::new(5.0, 0.0, 1.0), |_| Some(1.0)).is_none());
+    }
+}
