@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{lost_count, run_synthetic_with, synthetic_config};
+use common::{lost_count, run_synthetic_seeded, synthetic_config};
 use surfel_slam::eval::ate;
 use surfel_slam::se3::{exp, motion_magnitude};
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
@@ -56,11 +56,12 @@ fn joint_recovers_a_known_motion() {
     assert!(dr < 0.05, "rotation error {dr} deg");
 }
 
-/// ATE (m) and lost frames of `mode` on the synthetic room, 60 frames.
-fn synthetic_ate(mode: TrackerMode, noise: NoiseModel) -> (f64, usize) {
+/// ATE (m) and lost frames of `mode` on the synthetic room, 60 frames,
+/// the noise drawn from `seed`.
+fn synthetic_ate(mode: TrackerMode, noise: NoiseModel, seed: u64) -> (f64, usize) {
     let mut config = synthetic_config(small_intrinsics());
     config.tracker.mode = mode;
-    let (slam, reports, truth) = run_synthetic_with(config, 60, noise);
+    let (slam, reports, truth) = run_synthetic_seeded(config, 60, noise, seed);
     assert!(slam.map().all_finite());
     let a = ate(slam.trajectory(), &truth, 0.01).expect("ate");
     (a.rmse_m, lost_count(&reports))
@@ -68,7 +69,7 @@ fn synthetic_ate(mode: TrackerMode, noise: NoiseModel) -> (f64, usize) {
 
 fn joint_is_never_worse(noise: NoiseModel, label: &str) {
     let [icp, rgb, joint] = [TrackerMode::Icp, TrackerMode::Rgb, TrackerMode::Joint]
-        .map(|mode| synthetic_ate(mode, noise));
+        .map(|mode| synthetic_ate(mode, noise, 0));
     eprintln!(
         "{label}: ATE icp {:.3} mm ({} lost), rgb {:.3} mm ({} lost), joint {:.3} mm ({} lost)",
         icp.0 * 1e3,
@@ -94,8 +95,39 @@ fn joint_is_never_worse_than_the_better_term_noise_free() {
     joint_is_never_worse(NoiseModel::none(), "noise-free");
 }
 
+/// With noise, one draw can favour either single term by chance; what
+/// joint tracking promises is to be as good as the better one over draws:
+/// its mean ATE over `SEEDS` noise realisations within 5 % of the mean of
+/// each draw's better single term, and no frame lost.
 #[test]
-#[ignore = "fails since the libm merge (#37) changed this noise realisation: joint 5.24 mm against rgb 4.42 mm and icp 15.6 mm; 'never worse' held for the earlier draw only, see the closing note of session 17"]
-fn joint_is_never_worse_than_the_better_term_with_kinect_noise() {
-    joint_is_never_worse(NoiseModel::kinect(), "kinect noise");
+#[ignore = "fails on every draw: over 4 draws joint 3.9-6.3 mm (mean 5.2) against rgb 3.3-4.7 mm (mean 4.0) and icp 15.6-31.8 mm; under i.i.d. Kinect-like depth noise the joint weighting lets the depth term's slide in (issue #32)"]
+fn joint_is_as_good_as_the_better_term_over_kinect_noise_draws() {
+    const SEEDS: [u64; 4] = [0, 1_000, 2_000, 3_000];
+    let noise = NoiseModel::kinect();
+    let (mut joint_sum, mut better_sum) = (0.0, 0.0);
+    for seed in SEEDS {
+        let [icp, rgb, joint] = [TrackerMode::Icp, TrackerMode::Rgb, TrackerMode::Joint]
+            .map(|mode| synthetic_ate(mode, noise, seed));
+        eprintln!(
+            "kinect noise, seed {seed}: ATE icp {:.3} mm, rgb {:.3} mm, joint {:.3} mm ({} lost)",
+            icp.0 * 1e3,
+            rgb.0 * 1e3,
+            joint.0 * 1e3,
+            joint.1
+        );
+        assert_eq!(joint.1, 0, "joint lost frames with seed {seed}");
+        joint_sum += joint.0;
+        better_sum += icp.0.min(rgb.0);
+    }
+    let n = SEEDS.len() as f64;
+    let (joint, better) = (joint_sum / n, better_sum / n);
+    eprintln!(
+        "mean: joint {:.3} mm, better term {:.3} mm",
+        joint * 1e3,
+        better * 1e3
+    );
+    assert!(
+        joint <= better * 1.05 + 5e-5,
+        "joint {joint} m vs better single term {better} m, means over the draws"
+    );
 }

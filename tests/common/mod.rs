@@ -58,6 +58,17 @@ pub fn run_synthetic_with(
     frames: usize,
     noise: NoiseModel,
 ) -> (Pipeline, Vec<FrameReport>, Vec<(f64, DAffine3)>) {
+    run_synthetic_seeded(config, frames, noise, 0)
+}
+
+/// [`run_synthetic_with`] with frame `i`'s noise drawn from seed
+/// `seed + i` (another realisation of the same noise per `seed`).
+pub fn run_synthetic_seeded(
+    config: SlamConfig,
+    frames: usize,
+    noise: NoiseModel,
+    seed: u64,
+) -> (Pipeline, Vec<FrameReport>, Vec<(f64, DAffine3)>) {
     let k = config.intrinsics;
     let scene = Scene::room();
     let poses = synthetic::trajectory(frames);
@@ -66,7 +77,7 @@ pub fn run_synthetic_with(
     let mut reports = Vec::new();
     let mut truth = Vec::new();
     for (i, pose) in poses.iter().enumerate() {
-        let rendered = synthetic::render(&scene, &k, pose, &noise, i as u64);
+        let rendered = synthetic::render(&scene, &k, pose, &noise, seed + i as u64);
         let frame = rendered.to_frame(&config.depth).expect("frame");
         reports.push(slam.push_frame(&frame, i as f64).expect("push"));
         truth.push((i as f64, origin_inv * *pose));
