@@ -28,6 +28,10 @@ pub enum SessionError {
     /// Not a session file at all (another kind of file).
     #[error("not a surfel-slam session file: {0}")]
     NotASession(String),
+    /// The pipeline is localising in a loaded map (nothing new to save:
+    /// the map is the file it was loaded from).
+    #[error("a pipeline localising in a loaded map is not saved: the map is the session it was loaded from")]
+    Localising,
     /// Writing failed (the message says why: disk full, permissions, ...).
     #[error("could not write the session: {0}")]
     Write(String),
