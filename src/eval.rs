@@ -306,6 +306,15 @@ pub fn ate_report(
             }
         })
         .collect();
+    Ok(AteReport {
+        summary: statistics(&pairs, alignment),
+        errors: per_pose,
+    })
+}
+
+/// The position error statistics of `pairs` (estimate, ground truth;
+/// metres) under `alignment`; `pairs` must not be empty.
+fn statistics(pairs: &[(DVec3, DVec3)], alignment: DAffine3) -> AteResult {
     let mut errors: Vec<f64> = pairs
         .iter()
         .map(|(e, g)| (alignment.transform_point3(*e) - *g).length())
@@ -317,17 +326,40 @@ pub fn ate_report(
     } else {
         0.5 * (errors[n / 2 - 1] + errors[n / 2])
     };
-    Ok(AteReport {
-        summary: AteResult {
-            rmse_m: (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
-            mean_m: errors.iter().sum::<f64>() / n as f64,
-            median_m,
-            max_m: errors[n - 1],
-            pairs: n,
-            ground_truth_from_estimate: alignment,
-        },
-        errors: per_pose,
-    })
+    AteResult {
+        rmse_m: (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
+        mean_m: errors.iter().sum::<f64>() / n as f64,
+        median_m,
+        max_m: errors[n - 1],
+        pairs: n,
+        ground_truth_from_estimate: alignment,
+    }
+}
+
+/// ATE statistics of `estimate` under a given alignment
+/// (`ground_truth_from_estimate`), not one fitted to it: frames localised
+/// in a saved map are judged in the map's frame, with the alignment the
+/// map's own trajectory got from [`ate`]. Needs one matched pose.
+pub fn ate_in_frame(
+    estimate: &[(f64, DAffine3)],
+    ground_truth: &[(f64, DAffine3)],
+    max_dt: f64,
+    ground_truth_from_estimate: DAffine3,
+) -> Result<AteResult, EvalError> {
+    check_finite(estimate, "estimate")?;
+    check_finite(ground_truth, "ground truth")?;
+    let indices = associate_indices(estimate, ground_truth, Association::Timestamp { max_dt })?;
+    if indices.is_empty() {
+        return Err(EvalError::TooFewPairs {
+            found: 0,
+            needed: 1,
+        });
+    }
+    let pairs: Vec<(DVec3, DVec3)> = indices
+        .iter()
+        .map(|&(i, j)| (estimate[i].1.translation, ground_truth[j].1.translation))
+        .collect();
+    Ok(statistics(&pairs, ground_truth_from_estimate))
 }
 
 /// Position errors (metres) of `poses` (`world_from_camera`, all of the

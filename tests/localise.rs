@@ -160,34 +160,12 @@ fn a_view_of_nothing_in_the_map_is_unplaced_and_changes_nothing() {
     assert!(!slam.is_localising());
 }
 
-/// Root mean square and largest position error (metres) of `placed`
-/// against `truth`, under `ground_truth_from_map` (the alignment the
-/// map's own frames got; nothing is aligned again), and the poses matched.
-fn errors_in_map_frame(
-    placed: &[(f64, DAffine3)],
-    truth: &[(f64, DAffine3)],
-    ground_truth_from_map: &DAffine3,
-) -> (f64, f64, usize) {
-    use surfel_slam::eval::{associate_indices, Association};
-    let pairs = associate_indices(placed, truth, Association::Timestamp { max_dt: 0.02 }).unwrap();
-    let errors: Vec<f64> = pairs
-        .iter()
-        .map(|&(i, j)| {
-            let p = ground_truth_from_map.transform_point3(placed[i].1.translation);
-            (p - truth[j].1.translation).length()
-        })
-        .collect();
-    let n = errors.len().max(1) as f64;
-    let rms = (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
-    (rms, errors.iter().copied().fold(0.0, f64::max), errors.len())
-}
-
 /// A map built from frames `0..split` of a shared sequence, saved, loaded,
 /// and frames `split..end` localised cold in it; prints how many were
 /// placed and their ATE in the map's frame.
 fn localise_second_half(name: &str, split: usize, end: usize) {
     use surfel_slam::dataset::{read_frame, Sequence};
-    use surfel_slam::eval::ate;
+    use surfel_slam::eval::{ate, ate_in_frame};
     let Some(dir) = common::shared_dataset(name) else {
         return;
     };
@@ -221,14 +199,16 @@ fn localise_second_half(name: &str, split: usize, end: usize) {
     assert_eq!(Bits::of(&slam).differences(&before), Vec::<String>::new());
     let localisation = slam.localisation().unwrap();
     let placed = localisation.trajectory();
-    let (rms, max, matched) = errors_in_map_frame(
+    let in_map = ate_in_frame(
         placed,
         &sequence.ground_truth,
-        &first_half.ground_truth_from_estimate,
-    );
+        0.02,
+        first_half.ground_truth_from_estimate,
+    )
+    .unwrap();
     let c = localisation.counts();
     eprintln!(
-        "{name}: map of frames 0-{} (ATE {:.2} cm, {} surfels, {} keyframes, {} bytes); frames {split}-{} localised: {} of {} placed (first at frame {}; {} by relocalisation, {} tracked, {} held), {} unplaced; ATE of the placed in the map's frame: RMSE {:.2} cm, max {:.2} cm over {matched} poses; {:.1} ms/frame",
+        "{name}: map of frames 0-{} (ATE {:.2} cm, {} surfels, {} keyframes, {} bytes); frames {split}-{} localised: {} of {} placed (first at frame {}; {} by relocalisation, {} tracked, {} held), {} unplaced; ATE of the placed in the map's frame: RMSE {:.2} cm, max {:.2} cm over {} poses; {:.1} ms/frame",
         split - 1,
         first_half.rmse_m * 100.0,
         slam.map().live_len(),
@@ -242,8 +222,9 @@ fn localise_second_half(name: &str, split: usize, end: usize) {
         c.tracked,
         c.held,
         c.lost,
-        rms * 100.0,
-        max * 100.0,
+        in_map.rmse_m * 100.0,
+        in_map.max_m * 100.0,
+        in_map.pairs,
         seconds * 1000.0 / (end - split) as f64,
     );
     assert!(!placed.is_empty(), "{name}: no frame placed");

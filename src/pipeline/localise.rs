@@ -234,9 +234,7 @@ impl Pipeline {
         );
         self.tracker
             .remember_frame(&self.pyramid, pose, &self.config.tracker);
-        loc.velocity = loc
-            .last_placed
-            .map(|before| before.inverse() * *pose);
+        loc.velocity = loc.last_placed.map(|before| before.inverse() * *pose);
         self.sparse.current_becomes_reference();
         loc.last_placed = Some(*pose);
     }
