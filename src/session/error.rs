@@ -36,3 +36,21 @@ pub enum SessionError {
     #[error("could not write the session: {0}")]
     Write(String),
 }
+
+impl SessionError {
+    /// Short name of the kind, for messages and bindings: `truncated`,
+    /// `corrupt`, `future-version`, `camera-mismatch`, `not-a-session`,
+    /// `localising`, `write`.
+    #[must_use]
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::Truncated(_) => "truncated",
+            Self::Corrupt(_) => "corrupt",
+            Self::FutureVersion { .. } => "future-version",
+            Self::CameraMismatch(_) => "camera-mismatch",
+            Self::NotASession(_) => "not-a-session",
+            Self::Localising => "localising",
+            Self::Write(_) => "write",
+        }
+    }
+}
