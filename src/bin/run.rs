@@ -4,8 +4,10 @@
 //!
 //! Phases of [`run`], in order: `open_sequence`, `select_frames`,
 //! `checked_mesh_config`, `checked_session_path`, `start_pipeline` (with
-//! `--load`, the session replaces the new pipeline), `track_frames`,
-//! `write_outputs` (with `--save`, the session), `print_summary`.
+//! `--load`, the session replaces the new pipeline, the tracking options it
+//! overrides are named, and `--localise` switches it to localise mode),
+//! `track_frames`, `write_outputs` (with `--save`, the session),
+//! `print_summary` (or `print_localise_summary`).
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
