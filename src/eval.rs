@@ -491,6 +491,36 @@ mod tests {
     }
 
     #[test]
+    fn ate_in_frame_uses_the_given_alignment_and_fits_none() {
+        let gt = trajectory(60);
+        let world = DAffine3::from_rotation_translation(
+            DQuat::from_euler(EulerRot::ZYX, 0.3, 0.1, -0.2),
+            DVec3::new(1.0, 2.0, -0.5),
+        );
+        let est: Vec<_> = gt.iter().map(|(t, p)| (*t, world * *p)).collect();
+        // The first half gives the alignment; the second half is judged under it.
+        let alignment = ate(&est[..30], &gt, 0.02)
+            .expect("ate")
+            .ground_truth_from_estimate;
+        let r = ate_in_frame(&est[30..], &gt, 0.02, alignment).expect("in frame");
+        assert_eq!(r.pairs, 30);
+        assert!(r.rmse_m < 1e-9, "{r:?}");
+        // A second half shifted by 5 cm: a fitted alignment would hide it.
+        let shift = DAffine3::from_translation(DVec3::new(0.05, 0.0, 0.0));
+        let shifted: Vec<_> = est[30..].iter().map(|(t, p)| (*t, shift * *p)).collect();
+        let r = ate_in_frame(&shifted, &gt, 0.02, alignment).expect("in frame");
+        assert!(
+            (r.rmse_m - 0.05).abs() < 1e-9 && (r.max_m - 0.05).abs() < 1e-9,
+            "{r:?}"
+        );
+        assert!(ate(&shifted, &gt, 0.02).expect("ate").rmse_m < 1e-9);
+        assert!(matches!(
+            ate_in_frame(&est[..1], &gt[40..], 0.02, alignment),
+            Err(EvalError::TooFewPairs { found: 0, .. })
+        ));
+    }
+
+    #[test]
     fn ate_reports_a_known_offset() {
         // Each position appears twice, shifted by +d and -d along z: the
         // shifts cancel in the centroid and in the cross-covariance, so the
