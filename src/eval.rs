@@ -306,6 +306,15 @@ pub fn ate_report(
             }
         })
         .collect();
+    Ok(AteReport {
+        summary: statistics(&pairs, alignment),
+        errors: per_pose,
+    })
+}
+
+/// The position error statistics of `pairs` (estimate, ground truth;
+/// metres) under `alignment`; `pairs` must not be empty.
+fn statistics(pairs: &[(DVec3, DVec3)], alignment: DAffine3) -> AteResult {
     let mut errors: Vec<f64> = pairs
         .iter()
         .map(|(e, g)| (alignment.transform_point3(*e) - *g).length())
@@ -317,17 +326,40 @@ pub fn ate_report(
     } else {
         0.5 * (errors[n / 2 - 1] + errors[n / 2])
     };
-    Ok(AteReport {
-        summary: AteResult {
-            rmse_m: (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
-            mean_m: errors.iter().sum::<f64>() / n as f64,
-            median_m,
-            max_m: errors[n - 1],
-            pairs: n,
-            ground_truth_from_estimate: alignment,
-        },
-        errors: per_pose,
-    })
+    AteResult {
+        rmse_m: (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
+        mean_m: errors.iter().sum::<f64>() / n as f64,
+        median_m,
+        max_m: errors[n - 1],
+        pairs: n,
+        ground_truth_from_estimate: alignment,
+    }
+}
+
+/// ATE statistics of `estimate` under a given alignment
+/// (`ground_truth_from_estimate`), not one fitted to it: frames localised
+/// in a saved map are judged in the map's frame, with the alignment the
+/// map's own trajectory got from [`ate`]. Needs one matched pose.
+pub fn ate_in_frame(
+    estimate: &[(f64, DAffine3)],
+    ground_truth: &[(f64, DAffine3)],
+    max_dt: f64,
+    ground_truth_from_estimate: DAffine3,
+) -> Result<AteResult, EvalError> {
+    check_finite(estimate, "estimate")?;
+    check_finite(ground_truth, "ground truth")?;
+    let indices = associate_indices(estimate, ground_truth, Association::Timestamp { max_dt })?;
+    if indices.is_empty() {
+        return Err(EvalError::TooFewPairs {
+            found: 0,
+            needed: 1,
+        });
+    }
+    let pairs: Vec<(DVec3, DVec3)> = indices
+        .iter()
+        .map(|&(i, j)| (estimate[i].1.translation, ground_truth[j].1.translation))
+        .collect();
+    Ok(statistics(&pairs, ground_truth_from_estimate))
 }
 
 /// Position errors (metres) of `poses` (`world_from_camera`, all of the
@@ -456,6 +488,36 @@ mod tests {
             rpe.translation_rmse_m < 1e-9 && rpe.rotation_rmse_rad < 1e-6,
             "{rpe:?}"
         );
+    }
+
+    #[test]
+    fn ate_in_frame_uses_the_given_alignment_and_fits_none() {
+        let gt = trajectory(60);
+        let world = DAffine3::from_rotation_translation(
+            DQuat::from_euler(EulerRot::ZYX, 0.3, 0.1, -0.2),
+            DVec3::new(1.0, 2.0, -0.5),
+        );
+        let est: Vec<_> = gt.iter().map(|(t, p)| (*t, world * *p)).collect();
+        // The first half gives the alignment; the second half is judged under it.
+        let alignment = ate(&est[..30], &gt, 0.02)
+            .expect("ate")
+            .ground_truth_from_estimate;
+        let r = ate_in_frame(&est[30..], &gt, 0.02, alignment).expect("in frame");
+        assert_eq!(r.pairs, 30);
+        assert!(r.rmse_m < 1e-9, "{r:?}");
+        // A second half shifted by 5 cm: a fitted alignment would hide it.
+        let shift = DAffine3::from_translation(DVec3::new(0.05, 0.0, 0.0));
+        let shifted: Vec<_> = est[30..].iter().map(|(t, p)| (*t, shift * *p)).collect();
+        let r = ate_in_frame(&shifted, &gt, 0.02, alignment).expect("in frame");
+        assert!(
+            (r.rmse_m - 0.05).abs() < 1e-9 && (r.max_m - 0.05).abs() < 1e-9,
+            "{r:?}"
+        );
+        assert!(ate(&shifted, &gt, 0.02).expect("ate").rmse_m < 1e-9);
+        assert!(matches!(
+            ate_in_frame(&est[..1], &gt[40..], 0.02, alignment),
+            Err(EvalError::TooFewPairs { found: 0, .. })
+        ));
     }
 
     #[test]

@@ -4,7 +4,9 @@
 //! for byte, as the run that never stopped; bad session files and a camera
 //! other than the session's are refused with exit code 1 and a message
 //! naming the file and the problem; a `--save` path that cannot be written
-//! is refused before the run.
+//! is refused before the run. `--load FILE --localise` places the next
+//! frames in the saved map (near the ground truth, the file untouched);
+//! tracking options the session's settings override are named on stderr.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use std::path::{Path, PathBuf};
@@ -19,6 +21,7 @@ const FIRST_PART: usize = 30;
 
 struct Answer {
     code: i32,
+    stdout: String,
     stderr: String,
 }
 
@@ -31,6 +34,7 @@ fn run(extra: &[&std::ffi::OsStr]) -> Answer {
         .expect("the CLI runs");
     Answer {
         code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
         stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
     }
 }
@@ -143,4 +147,98 @@ fn a_saved_run_continued_from_its_file_writes_the_same_trajectory() {
     expect("save onto a folder", &a, 1, &["is a folder"]);
     let a = run(&[os("--save")]);
     expect("--save without a file", &a, 2, &["--save"]);
+}
+
+/// The number before `unit` after `label` in `text` (the summary line).
+fn number_after(text: &str, label: &str, unit: &str) -> Option<f64> {
+    let rest = &text[text.find(label)? + label.len()..];
+    rest[..rest.find(unit)?].trim().parse().ok()
+}
+
+#[test]
+fn localise_places_the_next_frames_in_the_saved_map_and_leaves_it() {
+    let dir = scratch("cli-localise");
+    let (session, placed) = (dir.0.join("clip.slam"), dir.0.join("placed.txt"));
+    let count = FIRST_PART.to_string();
+    let a = run(&[os("--count"), os(&count), os("--save"), path_arg(&session)]);
+    expect("first part, saved", &a, 0, &[]);
+    let saved = std::fs::read(&session).unwrap();
+    let a = run(&[
+        os("--first"),
+        os(&count),
+        os("--load"),
+        path_arg(&session),
+        os("--localise"),
+        os("--trajectory"),
+        path_arg(&placed),
+    ]);
+    expect("localised", &a, 0, &[]);
+    let placed_count: usize = a
+        .stdout
+        .split(" placed (")
+        .next()
+        .and_then(|head| head.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no placed count in {}", a.stdout));
+    let text = std::fs::read_to_string(&placed).unwrap();
+    let lines = text.lines().filter(|l| !l.starts_with('#')).count();
+    assert_eq!(lines, placed_count, "{}", a.stdout);
+    assert!(lines >= 10, "only {lines} frames placed: {}", a.stdout);
+    // Against the ground truth, aligned on the saved map's frames only.
+    let ate_cm = number_after(&a.stdout, "ATE in the map's frame", "cm")
+        .unwrap_or_else(|| panic!("no ATE in {}", a.stdout));
+    assert!(
+        ate_cm < 3.0,
+        "placed {ate_cm} cm from the truth: {}",
+        a.stdout
+    );
+    assert!(a.stdout.contains("map unchanged"), "{}", a.stdout);
+    assert_eq!(
+        std::fs::read(&session).unwrap(),
+        saved,
+        "the session file changed"
+    );
+
+    // Tracking options the session's settings override are named.
+    let a = run(&[
+        os("--first"),
+        os(&count),
+        os("--count"),
+        os("2"),
+        os("--load"),
+        path_arg(&session),
+        os("--tracker"),
+        os("joint"),
+        os("--max-surfels"),
+        os("1000"),
+        os("--icp-weight"),
+        os("3"),
+    ]);
+    expect(
+        "overridden options",
+        &a,
+        0,
+        &[
+            "--tracker joint (the session's: icp)",
+            "--max-surfels 1000",
+            "not used",
+        ],
+    );
+    // The session's own value is no override.
+    assert!(!a.stderr.contains("--icp-weight"), "{}", a.stderr);
+    let a = run(&[os("--count"), os("2"), os("--load"), path_arg(&session)]);
+    assert!(!a.stderr.contains("not used"), "{}", a.stderr);
+
+    // --localise needs --load, and saves nothing.
+    let a = run(&[os("--localise")]);
+    expect("--localise without --load", &a, 2, &["--load"]);
+    let other = dir.0.join("other.slam");
+    let a = run(&[
+        os("--load"),
+        path_arg(&session),
+        os("--localise"),
+        os("--save"),
+        path_arg(&other),
+    ]);
+    expect("--localise with --save", &a, 2, &["--save"]);
 }

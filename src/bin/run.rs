@@ -4,8 +4,10 @@
 //!
 //! Phases of [`run`], in order: `open_sequence`, `select_frames`,
 //! `checked_mesh_config`, `checked_session_path`, `start_pipeline` (with
-//! `--load`, the session replaces the new pipeline), `track_frames`,
-//! `write_outputs` (with `--save`, the session), `print_summary`.
+//! `--load`, the session replaces the new pipeline, the tracking options it
+//! overrides are named, and `--localise` switches it to localise mode),
+//! `track_frames`, `write_outputs` (with `--save`, the session),
+//! `print_summary` (or `print_localise_summary`).
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -14,9 +16,10 @@ use std::fs::File;
 use std::io::{BufReader, BufWriter};
 use std::path::{Path, PathBuf};
 use surfel_slam::dataset::{trajectory, DatasetSource, FrameEntry, Sequence};
-use surfel_slam::eval::ate;
+use surfel_slam::eval::{ate, ate_in_frame};
 use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::mesh::MeshConfig;
+use surfel_slam::pipeline::Localisation;
 use surfel_slam::session;
 use surfel_slam::{FrameReport, Pipeline, SlamConfig, Verdict};
 
@@ -83,6 +86,13 @@ pub struct RunArgs {
     /// pushed after its last one. The camera must be the session's.
     #[arg(long)]
     load: Option<PathBuf>,
+    /// With --load: localise the frames in the saved map without changing
+    /// it (no fusion, no loop closure). The first frame is placed by
+    /// relocalisation against the session's keyframes; frames that cannot
+    /// be placed are named on stderr and left out of --trajectory, which
+    /// then holds the placed frames only.
+    #[arg(long, requires = "load", conflicts_with = "save")]
+    localise: bool,
     /// Voxel edge of the mesh, metres (0.001 to 1).
     #[arg(long, default_value_t = MeshConfig::default().voxel_size_m, allow_negative_numbers = true, value_parser = voxel_size)]
     voxel_size: f32,
@@ -95,14 +105,15 @@ impl RunArgs {
     }
 }
 
-/// Runs `surfel-slam run`; returns the exit code (0, or
-/// `EXIT_FRAMES_SKIPPED` when some frames were unreadable).
-pub fn run(args: &RunArgs) -> Result<u8> {
+/// Runs `surfel-slam run`; `given`: the ids of the options given on the
+/// command line. Returns the exit code (0, or `EXIT_FRAMES_SKIPPED` when
+/// some frames were unreadable).
+pub fn run(args: &RunArgs, given: &[String]) -> Result<u8> {
     let (mut source, sequence) = open_sequence(args)?;
     let frames = select_frames(&sequence, args)?;
     let mesh_config = checked_mesh_config(args)?;
     checked_session_path(args)?;
-    let mut slam = start_pipeline(&mut source, &sequence, &frames, args)?;
+    let mut slam = start_pipeline(&mut source, &sequence, &frames, (args, given))?;
     let mut loop_log = args
         .loop_log
         .as_ref()
@@ -179,7 +190,7 @@ fn start_pipeline(
     source: &mut DatasetSource,
     sequence: &Sequence,
     frames: &[&FrameEntry],
-    args: &RunArgs,
+    (args, given): (&RunArgs, &[String]),
 ) -> Result<Pipeline> {
     let mut config = config_for(sequence, &args.camera, &args.tracking)?;
     let (first, width, height) = first_readable(source, frames, &config)?;
@@ -191,6 +202,20 @@ fn start_pipeline(
         let file = File::open(path).with_context(|| format!("opening {}", path.display()))?;
         session::load_into(&mut slam, BufReader::new(file))
             .with_context(|| format!("loading {}", path.display()))?;
+        let session_noise = slam.state().scalars.configured_noise.0;
+        let overridden = args
+            .tracking
+            .overridden_by(given, slam.config(), &session_noise);
+        if !overridden.is_empty() {
+            eprintln!(
+                "warning: {} not used: a loaded session keeps its own settings ({})",
+                overridden.join(", "),
+                path.display()
+            );
+        }
+        if args.localise {
+            slam.start_localising();
+        }
     }
     Ok(slam)
 }
@@ -334,7 +359,7 @@ fn track_frames(
                 if let Some(log) = loop_log.as_deref_mut() {
                     log.record(slam, &report);
                 }
-                report_verdict(&bar, entry, &report, streak);
+                report_verdict(&bar, entry, &report, (streak, slam.is_localising()));
                 streak = report.counts.lost_streak;
                 bar.set_message(format!(
                     "{} surfels, {} lost, {} recovered",
@@ -357,9 +382,15 @@ fn track_frames(
     }
 }
 
-/// Names a lost or recovered frame on stderr; `streak` is the number of
-/// lost frames before this one.
-fn report_verdict(bar: &ProgressBar, entry: &FrameEntry, report: &FrameReport, streak: u32) {
+/// Names a lost, recovered or unplaced frame on stderr; `streak` is the
+/// number of lost frames before this one; `localising`: in localise mode
+/// (a recovered frame is one relocalised in the saved map).
+fn report_verdict(
+    bar: &ProgressBar,
+    entry: &FrameEntry,
+    report: &FrameReport,
+    (streak, localising): (u32, bool),
+) {
     match report.verdict {
         // suspend, not println: a hidden bar (--quiet, no
         // terminal) drops println's lines.
@@ -369,6 +400,22 @@ fn report_verdict(bar: &ProgressBar, entry: &FrameEntry, report: &FrameReport, s
                 entry.index,
                 entry.timestamp,
                 reason.name()
+            );
+        }),
+        Verdict::Unplaced => bar.suspend(|| {
+            eprintln!(
+                "frame {} ({}) unplaced: not found in the saved map (no pose)",
+                entry.index, entry.timestamp
+            );
+        }),
+        Verdict::Recovered if localising => bar.suspend(|| {
+            let keyframe = report.checks.relocalised_from;
+            let how = keyframe.map_or("re-acquired".to_owned(), |k| {
+                format!("relocalised by the keyframe of frame {k}")
+            });
+            eprintln!(
+                "frame {} ({}) placed in the saved map: {how}",
+                entry.index, entry.timestamp
             );
         }),
         Verdict::Recovered => bar.suspend(|| {
@@ -388,10 +435,12 @@ fn report_verdict(bar: &ProgressBar, entry: &FrameEntry, report: &FrameReport, s
 
 /// Writes the trajectories (TUM), the map (PLY) and the mesh asked for.
 fn write_outputs(args: &RunArgs, slam: &Pipeline, mesh_config: MeshConfig) -> Result<()> {
-    for (path, poses) in [
-        (&args.trajectory, slam.trajectory()),
-        (&args.online_trajectory, slam.online_trajectory()),
-    ] {
+    // Localising: the frames placed in the saved map (no closures bend them).
+    let (poses, online) = match slam.localisation() {
+        Some(l) => (l.trajectory(), l.trajectory()),
+        None => (slam.trajectory(), slam.online_trajectory()),
+    };
+    for (path, poses) in [(&args.trajectory, poses), (&args.online_trajectory, online)] {
         if let Some(path) = path {
             std::fs::write(path, trajectory::format_tum(poses))
                 .with_context(|| format!("writing {}", path.display()))?;
@@ -428,6 +477,10 @@ fn print_summary(
         mean_ms: mean,
         median_ms: median,
     } = played;
+    if let Some(localisation) = slam.localisation() {
+        print_localise_summary(args, sequence, slam, localisation, (frames, played));
+        return;
+    }
     let counts = slam.counts();
     let accuracy = if sequence.ground_truth.is_empty() {
         "ATE n/a (no ground truth)".to_string()
@@ -452,5 +505,52 @@ fn print_summary(
         slam.loop_closures(),
         slam.global_loop_closures(),
         slam.map().live_len(),
+    );
+}
+
+/// The summary line of a `--localise` run: frames placed (how), unplaced,
+/// and the placed frames' ATE in the map's frame: the ground truth aligned
+/// to the saved map's trajectory only (when the sequence's ground truth
+/// covers the map's frames), never to the localised frames.
+fn print_localise_summary(
+    args: &RunArgs,
+    sequence: &Sequence,
+    slam: &Pipeline,
+    localisation: &Localisation,
+    (frames, played): (usize, Played),
+) {
+    let c = localisation.counts();
+    let placed = localisation.trajectory();
+    let accuracy = match ate(slam.trajectory(), &sequence.ground_truth, MAX_DT) {
+        _ if sequence.ground_truth.is_empty() => "ATE n/a (no ground truth)".to_owned(),
+        Err(e) => format!("ATE in the map's frame n/a (the map's own frames: {e})"),
+        Ok(map) => match ate_in_frame(
+            placed,
+            &sequence.ground_truth,
+            MAX_DT,
+            map.ground_truth_from_estimate,
+        ) {
+            Ok(a) => format!(
+                "ATE in the map's frame {} ({} poses)",
+                evaluate::cm(a.rmse_m),
+                a.pairs
+            ),
+            Err(e) => format!("ATE in the map's frame n/a ({e})"),
+        },
+    };
+    println!(
+        "{}: localised {} frames in {}: {} placed ({} relocalised, {} tracked, {} held), {} unplaced, {} unreadable, map unchanged ({} surfels), {accuracy}, {:.1} ms/frame (median {:.1})",
+        args.dataset.display(),
+        frames,
+        args.load.as_deref().unwrap_or(Path::new("")).display(),
+        placed.len(),
+        c.recovered,
+        c.tracked,
+        c.held,
+        c.lost,
+        played.failed,
+        slam.map().live_len(),
+        played.mean_ms,
+        played.median_ms,
     );
 }

@@ -20,7 +20,8 @@ mod run;
 
 use anyhow::Result;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
-use clap::{Args, Parser, Subcommand};
+use clap::parser::ValueSource;
+use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use surfel_slam::dataset::Sequence;
@@ -100,7 +101,74 @@ pub(crate) struct TrackingArgs {
     min_noise_weight: Option<f32>,
 }
 
+/// A noise model's name, or its coefficients when it has none.
+fn noise_name(noise: &SensorNoise) -> String {
+    SensorNoise::NAMES
+        .iter()
+        .find(|n| SensorNoise::from_name(n).as_ref() == Some(noise))
+        .map_or_else(|| format!("{noise:?}"), |n| (*n).to_owned())
+}
+
 impl TrackingArgs {
+    /// The options among `given` (ids given on the command line) whose
+    /// value differs from `session`'s configuration (`session_noise`: its
+    /// tracker noise model as configured), each as `--option value (the
+    /// session's: value)`: a loaded session keeps its own settings.
+    pub(crate) fn overridden_by(
+        &self,
+        given: &[String],
+        session: &SlamConfig,
+        session_noise: &SensorNoise,
+    ) -> Vec<String> {
+        let noise = self
+            .noise
+            .map(|n| (noise_name(&n), noise_name(session_noise)));
+        let min_weight = self
+            .min_noise_weight
+            .map(|w| (w.to_string(), session.fusion.min_noise_weight.to_string()));
+        let options = [
+            (
+                "half",
+                "--half",
+                Some((self.half.to_string(), session.half_resolution.to_string())),
+            ),
+            (
+                "max_surfels",
+                "--max-surfels",
+                Some((
+                    self.max_surfels.to_string(),
+                    session.fusion.max_surfels.to_string(),
+                )),
+            ),
+            (
+                "tracker",
+                "--tracker",
+                Some((
+                    self.tracker.name().to_owned(),
+                    session.tracker.mode.name().to_owned(),
+                )),
+            ),
+            (
+                "icp_weight",
+                "--icp-weight",
+                Some((
+                    self.icp_weight.to_string(),
+                    session.tracker.icp_weight.to_string(),
+                )),
+            ),
+            ("noise", "--noise", noise),
+            ("min_noise_weight", "--min-noise-weight", min_weight),
+        ];
+        options
+            .into_iter()
+            .filter(|(id, ..)| given.iter().any(|g| g == id))
+            .filter_map(|(_, flag, values)| {
+                let (ours, theirs) = values?;
+                (ours != theirs).then(|| format!("{flag} {ours} (the session's: {theirs})"))
+            })
+            .collect()
+    }
+
     pub(crate) fn apply(&self, config: &mut SlamConfig) {
         config.half_resolution = self.half;
         config.fusion.max_surfels = self.max_surfels;
@@ -306,7 +374,11 @@ impl CameraOverrides {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let matches = Cli::command().get_matches();
+    let cli = match Cli::from_arg_matches(&matches) {
+        Ok(cli) => cli,
+        Err(e) => e.exit(),
+    };
     // Bad command lines exit 2 before any file is read.
     let usage = match &cli.command {
         Command::Run(args) => args.camera().usage_problem(),
@@ -318,7 +390,7 @@ fn main() -> ExitCode {
         return ExitCode::from(EXIT_USAGE);
     }
     let result = match cli.command {
-        Command::Run(args) => run::run(&args),
+        Command::Run(args) => run::run(&args, &given_options(&matches, "run")),
         Command::Bench(args) => bench::bench(&args).map(|()| 0),
         Command::Mesh(args) => mesh_file::mesh_file(&args).map(|()| 0),
         Command::Eval(args) => evaluate::evaluate(&args).map(|()| 0),
@@ -331,6 +403,18 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// The ids of the options of `subcommand` given on the command line (not
+/// defaulted): a loaded session names those its settings override.
+fn given_options(matches: &clap::ArgMatches, subcommand: &str) -> Vec<String> {
+    let Some(sub) = matches.subcommand_matches(subcommand) else {
+        return Vec::new();
+    };
+    sub.ids()
+        .filter(|id| sub.value_source(id.as_str()) == Some(ValueSource::CommandLine))
+        .map(|id| id.as_str().to_owned())
+        .collect()
 }
 
 /// The error and its causes joined by ": ", skipping a cause whose text the

@@ -12,12 +12,14 @@
 
 mod config;
 mod input;
+mod localise;
 mod recovery;
 mod report;
 mod settings_check;
 mod state;
 
 pub use config::{PipelineError, SlamConfig};
+pub use localise::Localisation;
 pub use report::{FrameReport, StageTimings, Verdict, VerdictCounts};
 pub use settings_check::{depth_scale_warning, layout_warnings, SettingsCheck, SettingsWarning};
 pub use state::{LastFusedFrame, PipelineScalars, PipelineState, StateView};
@@ -77,6 +79,9 @@ pub struct Pipeline {
     /// The tracker's and fusion's noise models as configured, before the
     /// first frame's clean-depth check (`SlamConfig::clean_depth_noise`).
     configured_noise: (SensorNoise, SensorNoise),
+    /// Localise mode ([`Pipeline::start_localising`]): what it keeps; `None`
+    /// while mapping.
+    localising: Option<Box<Localisation>>,
 }
 
 impl Pipeline {
@@ -113,6 +118,7 @@ impl Pipeline {
             last_good: None,
             frame_index: 0,
             counts: VerdictCounts::default(),
+            localising: None,
         })
     }
 
@@ -188,6 +194,7 @@ impl Pipeline {
     /// rebuilt before it is read, so the pipeline then behaves as a new one:
     /// the same frames give the same trajectory (to the rounding of parallel
     /// sums; `tests/reset_replay.rs`, `tests/pipeline_properties.rs`).
+    /// Leaves localise mode.
     pub fn reset(&mut self) {
         self.map.clear();
         // The sorted runs index the old map: kept, the next cleanup would
@@ -204,6 +211,7 @@ impl Pipeline {
         self.prediction.clear();
         self.loop_closer.reset();
         self.decoded_was_pushed = false;
+        self.localising = None;
     }
 
     /// Processes one decoded frame stamped `timestamp` (seconds or frame
@@ -217,6 +225,9 @@ impl Pipeline {
     /// frame is reported as [`Verdict::Recovered`] and fused. When the map is at
     /// `FusionConfig::max_surfels`, stale unstable surfels are evicted first,
     /// then new surfels are skipped (`FusionStats::skipped`).
+    ///
+    /// In localise mode ([`Pipeline::start_localising`]) the frame is only
+    /// placed in the map, which does not change (`localise.rs`).
     pub fn push_frame(
         &mut self,
         frame: &RgbdFrame,
@@ -227,6 +238,11 @@ impl Pipeline {
         let input = self.config.intrinsics;
         frame.expect_size(input.width, input.height)?;
         frame.validate()?;
+        if let Some(localisation) = self.localising.take() {
+            let (report, localisation) = self.localise_frame(frame, timestamp, localisation);
+            self.localising = Some(localisation);
+            return Ok(report);
+        }
         let index = self.frame_index;
         if index == 0 {
             self.choose_noise(frame);
@@ -318,7 +334,9 @@ impl Pipeline {
                 result: None,
                 checks: TrackingChecks::default(),
             },
-            Some(previous) => self.track_or_recover(&previous),
+            Some(previous) => {
+                self.track_or_recover(&previous, self.velocity, self.counts.lost_streak)
+            }
         };
         self.relocalise_if_lost(tracked)
     }
@@ -444,7 +462,8 @@ impl Pipeline {
     /// Stage `count_verdict`: the run's verdict counts and lost streak.
     fn count_verdict(&mut self, verdict: Verdict) {
         match verdict {
-            Verdict::Lost(_) => {
+            // Unplaced only while localising, which counts apart.
+            Verdict::Lost(_) | Verdict::Unplaced => {
                 self.counts.lost += 1;
                 self.counts.lost_streak += 1;
             }

@@ -56,7 +56,7 @@ impl Tracked {
 /// a tiny residual. Measured (conditioning of the final 6x6 system): every
 /// tracked frame of TUM fr3/teddy >= 0.0079; a synthetic view of a wall and
 /// the floor that slid 22 cm on re-acquisition: 0.0005.
-const RECOVERY_MIN_CONDITIONING: f64 = 2e-3;
+pub(super) const RECOVERY_MIN_CONDITIONING: f64 = 2e-3;
 
 /// Whether `result` pins all six degrees of freedom well enough to be
 /// trusted without the previous pose as a prior: well conditioned, and no
@@ -91,8 +91,9 @@ pub(super) fn recovery_tracker(normal: &TrackerConfig) -> TrackerConfig {
 
 impl Pipeline {
     /// Tracks the pyramid's frame from `previous` (the last good pose), or
-    /// from `previous` moved on by the last frame-to-frame motion when the
-    /// constant-velocity prior is on.
+    /// from `previous` moved on by `velocity` (the last frame-to-frame
+    /// motion) when the constant-velocity prior is on; `lost_streak` is
+    /// the number of frames lost since `previous`.
     ///
     /// A dense result is accepted as it stands only when it passed the
     /// tracker's own tests, its points do not land in the model's free
@@ -108,11 +109,16 @@ impl Pipeline {
     /// the normal tracker, started there, accepts it, it does not violate
     /// free space, and the motion since `previous` is plausible for the
     /// number of frames lost ([`Judge::reacquire`]).
-    pub(super) fn track_or_recover(&mut self, previous: &DAffine3) -> Tracked {
+    pub(super) fn track_or_recover(
+        &mut self,
+        previous: &DAffine3,
+        velocity: Option<DAffine3>,
+        lost_streak: u32,
+    ) -> Tracked {
         let normal = &self.config.tracker;
         let verify = normal.verify;
-        let was_lost = self.counts.lost_streak > 0;
-        let guess = match self.velocity {
+        let was_lost = lost_streak > 0;
+        let guess = match velocity {
             Some(velocity) if verify.constant_velocity && !was_lost => *previous * velocity,
             _ => *previous,
         };
@@ -124,7 +130,7 @@ impl Pipeline {
             verify,
             previous: *previous,
             guess,
-            lost_streak: self.counts.lost_streak,
+            lost_streak,
         };
         let workspace = &mut self.tracker;
         let mut checks = TrackingChecks::default();

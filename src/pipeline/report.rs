@@ -25,10 +25,16 @@ pub enum Verdict {
     Held,
     /// Not tracked; not fused; the pose is held at the last good one.
     Lost(LostReason),
+    /// Localise mode only: the frame could not be placed in the saved map
+    /// (neither tracked from the last placed frame nor relocalised from
+    /// the keyframes). It has no pose ([`FrameReport::pose`] is `None`);
+    /// the next frame is relocalised.
+    Unplaced,
 }
 
 impl Verdict {
-    /// Short name: `initialised`, `tracked`, `recovered`, `held`, `lost`.
+    /// Short name: `initialised`, `tracked`, `recovered`, `held`, `lost`,
+    /// `unplaced`.
     #[must_use]
     pub fn name(&self) -> &'static str {
         match self {
@@ -37,13 +43,16 @@ impl Verdict {
             Verdict::Recovered => "recovered",
             Verdict::Held => "held",
             Verdict::Lost(_) => "lost",
+            Verdict::Unplaced => "unplaced",
         }
     }
 
-    /// True when the frame was fused (initialised, tracked, recovered or held).
+    /// True when the frame was fused (initialised, tracked, recovered or
+    /// held) while mapping. In localise mode nothing is fused: these
+    /// verdicts there mean placed in the map.
     #[must_use]
     pub fn is_fused(&self) -> bool {
-        !matches!(self, Verdict::Lost(_))
+        !matches!(self, Verdict::Lost(_) | Verdict::Unplaced)
     }
 }
 
@@ -97,7 +106,8 @@ pub struct FrameReport {
     pub index: u32,
     /// The caller's timestamp (seconds or frame number).
     pub timestamp: f64,
-    /// Estimated camera pose (camera to world).
+    /// Estimated camera pose (camera to world, metres); the identity, not
+    /// a pose, for a [`Verdict::Unplaced`] frame (see [`Self::pose`]).
     pub world_from_camera: DAffine3,
     /// Initialised, tracked, held, recovered or lost (see [`Verdict`]).
     pub verdict: Verdict,
@@ -134,4 +144,13 @@ pub struct FrameReport {
     pub settings_warning: Option<SettingsWarning>,
     /// Stage timings.
     pub timings: StageTimings,
+}
+
+impl FrameReport {
+    /// The frame's pose (`world_from_camera`, metres), `None` for a frame
+    /// localise mode could not place.
+    #[must_use]
+    pub fn pose(&self) -> Option<DAffine3> {
+        (self.verdict != Verdict::Unplaced).then_some(self.world_from_camera)
+    }
 }

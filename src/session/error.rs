@@ -28,7 +28,29 @@ pub enum SessionError {
     /// Not a session file at all (another kind of file).
     #[error("not a surfel-slam session file: {0}")]
     NotASession(String),
+    /// The pipeline is localising in a loaded map (nothing new to save:
+    /// the map is the file it was loaded from).
+    #[error("a pipeline localising in a loaded map is not saved: the map is the session it was loaded from")]
+    Localising,
     /// Writing failed (the message says why: disk full, permissions, ...).
     #[error("could not write the session: {0}")]
     Write(String),
+}
+
+impl SessionError {
+    /// Short name of the kind, for messages and bindings: `truncated`,
+    /// `corrupt`, `future-version`, `camera-mismatch`, `not-a-session`,
+    /// `localising`, `write`.
+    #[must_use]
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::Truncated(_) => "truncated",
+            Self::Corrupt(_) => "corrupt",
+            Self::FutureVersion { .. } => "future-version",
+            Self::CameraMismatch(_) => "camera-mismatch",
+            Self::NotASession(_) => "not-a-session",
+            Self::Localising => "localising",
+            Self::Write(_) => "write",
+        }
+    }
 }

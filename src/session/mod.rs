@@ -56,8 +56,12 @@ const LAST_FRAME: &str = "last_frame.bin";
 /// Largest manifest read, bytes.
 const MAX_MANIFEST: u64 = 16 << 20;
 
-/// Writes `pipeline`'s session to `out`; returns `out`.
+/// Writes `pipeline`'s session to `out`; returns `out`. Refused in
+/// localise mode ([`SessionError::Localising`]).
 pub fn save<W: Write + Seek>(pipeline: &Pipeline, out: W) -> Result<W, SessionError> {
+    if pipeline.is_localising() {
+        return Err(SessionError::Localising);
+    }
     let state = pipeline.state();
     let failed = |e: &dyn std::fmt::Display| SessionError::Write(e.to_string());
     let mut zip = zip::ZipWriter::new(out);

@@ -25,14 +25,14 @@ export interface Preset {
 export interface FrameReport {
   index: number;
   timestamp: number;
-  /** 'recovered': re-acquired against the map after a loss (fused). 'held': fused, but the geometry left some directions of motion free (a flat wall) and the pose was held at the motion prior in those. */
-  verdict: 'initialised' | 'tracked' | 'recovered' | 'held' | 'lost';
+  /** 'recovered': re-acquired against the map after a loss (fused); while localising, placed by relocalisation. 'unplaced' (localising only): not found in the loaded map, no pose (pose, translation and quaternion are null). 'held': fused, but the geometry left some directions of motion free (a flat wall) and the pose was held at the motion prior in those. */
+  verdict: 'initialised' | 'tracked' | 'recovered' | 'held' | 'lost' | 'unplaced';
   lostReason: null | 'too-few-inliers' | 'high-residual' | 'ill-conditioned' | 'implausible-motion';
-  /** world_from_camera, 4x4 column-major, metres. */
-  pose: Float64Array;
-  translation: [number, number, number];
-  /** Unit quaternion [x, y, z, w], w >= 0. */
-  quaternion: [number, number, number, number];
+  /** world_from_camera, 4x4 column-major, metres; null for an 'unplaced' frame. */
+  pose: Float64Array | null;
+  translation: [number, number, number] | null;
+  /** Unit quaternion [x, y, z, w], w >= 0; null for an 'unplaced' frame. */
+  quaternion: [number, number, number, number] | null;
   inliers: number; inlierRatio: number;
   /** RMS point-to-plane residual, metres. */
   residual: number;
@@ -182,15 +182,20 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
         ("predict", tm.predict_ms.into()),
         ("total", tm.total_ms.into()),
     ]);
+    let placed = r.pose().is_some();
+    let or_null = |value: JsValue| if placed { value } else { JsValue::NULL };
     let matrix = Float64Array::from(&DMat4::from(*pose).to_cols_array()[..]);
     object(&[
         ("index", r.index.into()),
         ("timestamp", r.timestamp.into()),
         ("verdict", r.verdict.name().into()),
         ("lostReason", lost_reason),
-        ("pose", matrix.into()),
-        ("translation", numbers(&[t.x, t.y, t.z]).into()),
-        ("quaternion", numbers(&unit_quaternion(pose)).into()),
+        ("pose", or_null(matrix.into())),
+        ("translation", or_null(numbers(&[t.x, t.y, t.z]).into())),
+        (
+            "quaternion",
+            or_null(numbers(&unit_quaternion(pose)).into()),
+        ),
         ("inliers", (r.inliers as f64).into()),
         ("inlierRatio", r.inlier_ratio.into()),
         ("residual", r.residual_rms_m.into()),

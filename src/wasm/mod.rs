@@ -8,6 +8,7 @@
 //! - [`dataset`]: `detectLayout`, `parseSequence`, `ateTum` (the CLI's parsers).
 //! - [`archive`]: the `ArchiveReader` class (datasets in .zip / .tar / .tar.gz).
 //! - [`flow`]: the `OpticalFlow` class (Lucas-Kanade tracks for the page's overlay).
+//! - [`session`]: `Slam.load`'s options and session errors as JS errors.
 //! - [`config`]: the config object of `new Slam(config)`, one table of keys.
 //! - [`convert`]: report / preset / dataset conversions to JS objects, and
 //!   the error for JS arguments of the wrong shape.
@@ -22,6 +23,7 @@ pub mod convert;
 pub mod dataset;
 pub mod flow;
 pub mod mesh;
+pub mod session;
 pub mod slam;
 
 use wasm_bindgen::prelude::*;

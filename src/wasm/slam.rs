@@ -11,11 +11,15 @@ use wasm_bindgen::prelude::*;
 
 use super::config::slam_config_from_js;
 use super::convert::{ate_to_js, max_dt_from_js, report_to_js};
+use super::session::{session_error, LoadOptions};
 use crate::camera::CameraPreset;
 use crate::dataset::trajectory::{format_tum, parse_tum};
 use crate::eval;
 use crate::mesh::write_surfel_ply;
 use crate::pipeline::Pipeline;
+use crate::session;
+use glam::DAffine3;
+use std::io::Cursor;
 
 /// Dense RGB-D SLAM: camera trajectory and surfel map from RGB-D frames.
 #[wasm_bindgen]
@@ -181,11 +185,51 @@ impl Slam {
         u32::try_from(self.pipeline.map().live_len()).unwrap_or(u32::MAX)
     }
 
-    /// Frames pushed (accepted) since creation or the last reset.
+    /// Frames pushed (accepted) since creation or the last reset, those
+    /// of a loaded session included. While localising: the map's frames
+    /// (the localised ones are in the reports' `counts`).
     #[wasm_bindgen(getter)]
     #[must_use]
     pub fn frames(&self) -> u32 {
         self.pipeline.frames()
+    }
+
+    /// Whether frames are being localised in a loaded map
+    /// (`load(bytes, { localise: true })`) rather than mapped.
+    #[wasm_bindgen(getter)]
+    #[must_use]
+    pub fn localising(&self) -> bool {
+        self.pipeline.is_localising()
+    }
+
+    /// The session as bytes (a zip: map, keyframes, trajectory, settings;
+    /// `load` continues from it exactly). Throws (`localising: ...`) while
+    /// localising: the map is the session loaded.
+    pub fn save(&self) -> Result<Vec<u8>, JsError> {
+        session::save(&self.pipeline, Cursor::new(Vec::new()))
+            .map(Cursor::into_inner)
+            .map_err(|e| session_error(&e))
+    }
+
+    /// Replaces this Slam's map, trajectory and settings by the session in
+    /// `bytes` (from `save()`); the camera must be this Slam's. Pushed
+    /// frames then continue it exactly, or with `{ localise: true }` are
+    /// placed in its map without changing it. Throws an Error whose
+    /// message starts with the kind (`truncated`, `corrupt`,
+    /// `future-version`, `camera-mismatch`, `not-a-session`) on a bad file,
+    /// or on bad options, and then keeps everything it held.
+    pub fn load(
+        &mut self,
+        bytes: &[u8],
+        #[wasm_bindgen(unchecked_param_type = "LoadOptions | undefined")] options: JsValue,
+    ) -> Result<(), JsError> {
+        let options = LoadOptions::from_js(&options)?;
+        session::load_into(&mut self.pipeline, Cursor::new(bytes))
+            .map_err(|e| session_error(&e))?;
+        if options.localise {
+            self.pipeline.start_localising();
+        }
+        Ok(())
     }
 
     /// Surfel centres, `3 * surfelCount` floats, world frame, metres.
@@ -238,11 +282,12 @@ impl Slam {
     }
 
     /// The trajectory so far as TUM lines `timestamp tx ty tz qx qy qz qw`
-    /// (camera to world), with a `#` header line.
+    /// (camera to world), with a `#` header line. While localising: the
+    /// frames placed in the loaded map (unplaced ones are absent).
     #[wasm_bindgen(js_name = trajectoryTum)]
     #[must_use]
     pub fn trajectory_tum(&self) -> String {
-        format_tum(self.pipeline.trajectory())
+        format_tum(self.trajectory())
     }
 
     /// Absolute trajectory error of the trajectory so far against
@@ -260,11 +305,7 @@ impl Slam {
     ) -> Result<JsValue, JsError> {
         let max_dt = max_dt_from_js(max_dt)?;
         let truth = parse_tum(ground_truth_tum, "ground truth")?;
-        Ok(ate_to_js(&eval::ate(
-            self.pipeline.trajectory(),
-            &truth,
-            max_dt,
-        )?))
+        Ok(ate_to_js(&eval::ate(self.trajectory(), &truth, max_dt)?))
     }
 
     /// The surfel map as a binary little-endian PLY file.
@@ -320,6 +361,14 @@ impl Slam {
 }
 
 impl Slam {
+    /// The trajectory `trajectoryTum` and `ate` read: the mapped one, or
+    /// while localising the placed frames.
+    fn trajectory(&self) -> &[(f64, DAffine3)] {
+        self.pipeline
+            .localisation()
+            .map_or(self.pipeline.trajectory(), |l| l.trajectory())
+    }
+
     /// The pipeline, for Rust callers (tests).
     #[must_use]
     pub fn pipeline(&self) -> &Pipeline {

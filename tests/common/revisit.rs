@@ -38,7 +38,7 @@ pub fn config() -> SlamConfig {
 }
 
 /// A frame of noise: random colour and random depth in 0.5..4.5 m.
-fn covered(config: &SlamConfig, seed: u64) -> RgbdFrame {
+pub fn covered(config: &SlamConfig, seed: u64) -> RgbdFrame {
     let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
     let mut next = move || {
         state ^= state << 13;
