@@ -13,7 +13,7 @@ import { ToWorker, FromWorker } from './protocol.js';
 import { MapMirror } from './map-mirror.js';
 import { CameraSettings } from './camera-settings.js';
 import { DisplayFrame, GroundTruthTrack } from './display-frame.js';
-import { downloadMirror, isMeshExport, saveExport } from './downloads.js';
+import { downloadMirror, downloadSession, isMeshExport, saveExport } from './downloads.js';
 import { wireViewControls } from './view-controls.js';
 import { MessageBoard } from './messages.js';
 
@@ -62,6 +62,10 @@ const status = {
   meshView: false, // the view shows the mesh instead of the splats
   meshTriangles: null, // triangles of the mesh in the view (null: none received yet)
   meshProgress: null, // fraction of the meshing under way, null when none
+  session: null, // {name, frames, surfels, localising}: the session file last opened (null: none since the last new map)
+  sessionSaveMs: null, // time of the last Slam.save in the worker, ms
+  sessionSaveBytes: null, // size of the last session saved, bytes
+  sessionOpenMs: null, // time of the last Slam.load in the worker (manifest read included), ms
 };
 window.surfelSlamStatus = status;
 
@@ -79,6 +83,9 @@ const ui = {
   meshProgress: $('mesh-progress'),
   viewMesh: $('view-mesh'),
   depthScale: $('depth-scale'),
+  saveSession: $('save-session-button'),
+  sessionInput: $('session-input'),
+  sessionLocalise: $('session-localise'),
 };
 
 let sequence = null; // {name, kind, preset, frameCount, groundTruth: GroundTruthTrack}
@@ -212,9 +219,9 @@ function startWorker() {
   lastHeard = performance.now();
 }
 
-function send(msg) {
+function send(msg, transfer = []) {
   lastHeard = performance.now();
-  worker.postMessage(msg);
+  worker.postMessage(msg, transfer);
 }
 
 // The map and trajectory as the page was sent them: the downloads after a failure.
@@ -259,8 +266,14 @@ function setControls() {
   ui.ply.disabled = !status.ready && !status.failed;
   ui.trajectory.disabled = !status.ready && !status.failed;
   for (const b of [ui.meshGlb, ui.meshPly, ui.pointsGlb]) b.disabled = !status.ready || status.failed;
+  setSaveSession();
   ui.play.textContent = workerPlaying ? 'Pause' : status.done ? 'Replay' : 'Play';
   ui.play.title = workerPlaying ? 'stop after this frame' : status.done ? 'empty the map and play again from the first frame' : '';
+}
+
+/** Save session: only with a map to save. */
+function setSaveSession() {
+  ui.saveSession.disabled = !status.ready || status.failed || !(status.surfels > 0);
 }
 
 // ---- display frame -----------------------------------------------------------------
@@ -284,6 +297,7 @@ function clearMap() {
   status.positionErrorCm = null;
   status.relocalisedFrames = [];
   status.trajectoryReplaced = 0;
+  status.session = null;
   mirror.clear();
   plots.reset();
   plots.setGroundTruth(!!sequence?.groundTruth.length);
@@ -302,14 +316,35 @@ function clearMap() {
  * downloads' copy are replaced by it.
  */
 function replaceTrajectory(tum) {
+  const points = pathFromTum(tum);
+  renderer?.setTrajectory(points.slice(0, -1).map((p) => display.point(p)));
+  status.trajectoryReplaced++;
+}
+
+/** The camera positions of a TUM trajectory (world frame, metres); the page's copy for the downloads takes the text. */
+function pathFromTum(tum) {
   mirror.setTrajectoryTum(tum);
-  const points = tum
+  return tum
     .split('\n')
     .filter((line) => line && !line.startsWith('#'))
     .map((line) => line.trim().split(/\s+/).slice(1, 4).map(Number))
     .filter((p) => p.length === 3 && p.every(Number.isFinite));
-  renderer?.setTrajectory(points.slice(0, -1).map((p) => display.point(p)));
-  status.trajectoryReplaced++;
+}
+
+/**
+ * An opened session (FromWorker.SESSION_OPENED's, or a sequence going on
+ * in it): the map, the camera path and the statistics are the loaded Slam's.
+ */
+function showSession(name, snapshot) {
+  clearMap();
+  stats.onSession(snapshot);
+  mirror.update(snapshot.map);
+  renderer?.updateSurfels(display.chunk(snapshot.map));
+  const points = pathFromTum(snapshot.trajectoryTum);
+  if (points.length) renderer?.setTrajectory(points.map((p) => display.point(p)));
+  status.session = { name, frames: snapshot.frames, surfels: snapshot.surfels, localising: snapshot.localising };
+  syncStatus();
+  setControls();
 }
 
 const handlers = {
@@ -329,6 +364,7 @@ const handlers = {
   },
 
   [FromWorker.SEQUENCE](msg) {
+    const openedSession = status.session?.name;
     if (loading?.name === msg.name) lastLoad = loading;
     const groundTruth = new GroundTruthTrack(msg.groundTruth, msg.kind);
     sequence = { name: msg.name, kind: msg.kind, preset: msg.preset, frameCount: msg.frameCount, groundTruth };
@@ -349,7 +385,33 @@ const handlers = {
     sequence.line = `${msg.name} — ${msg.kind}, ${msg.frameCount} frames${gt}, camera ${msg.preset}`;
     ui.sequenceInfo.textContent = sequence.line;
     for (const w of msg.warnings ?? []) reportWarning(w);
+    if (msg.session) showSession(openedSession ?? msg.name, msg.session);
     setControls();
+  },
+
+  [FromWorker.SESSION_SAVED](msg) {
+    if (msg.error) {
+      reportError(`cannot save the session: ${msg.error}`);
+      return;
+    }
+    status.sessionSaveMs = Number(msg.ms.toFixed(1));
+    status.sessionSaveBytes = msg.bytes.byteLength;
+    console.info(`surfel-slam: session saved in ${status.sessionSaveMs} ms, ${msg.bytes.byteLength} bytes`);
+    downloadSession(msg.bytes, msg.name ?? sequence?.name);
+  },
+
+  [FromWorker.SESSION_OPENED](msg) {
+    status.sessionOpenMs = Number(msg.ms.toFixed(1));
+    console.info(`surfel-slam: session ${msg.name} opened in ${status.sessionOpenMs} ms`);
+    clearMessages();
+    if (!sequence) setDisplayFrame(msg.config);
+    showSession(msg.name, msg.session);
+    const mode = msg.session.localising ? 'the next frames are localised in it' : 'the next frames continue it';
+    ui.sequenceInfo.textContent = `session ${msg.name}: ${msg.session.frames} frames, ${msg.session.surfels} surfels; ${mode}${sequence ? ` (${sequence.name}: Play goes on)` : ' (open or drop a sequence)'}`;
+  },
+
+  [FromWorker.SESSION_ERROR](msg) {
+    reportError(`cannot open the session ${msg.name}: ${msg.message}${status.surfels > 0 ? ' (the current map is kept)' : ''}`);
   },
 
   [FromWorker.FRAME](msg) {
@@ -382,6 +444,7 @@ const handlers = {
     views.show(msg.input.colour, msg.input.depth, Number(ui.depthScale.value) || msg.input.depthScale || 5000, msg.flow, msg.input.colourPreview, msg.input.depthPreview);
     if (msg.done) status.done = true;
     syncStatus();
+    setSaveSession();
     // How far the display trails the worker (main thread busy drawing or uploading).
     status.displayLagMs = Math.round(performance.now() + performance.timeOrigin - msg.timing.doneAt);
     status.uploadMs = Number((performance.now() - t0).toFixed(1));
@@ -519,6 +582,15 @@ $('show-flow').addEventListener('change', (e) => {
     views.hideFlow();
     status.flowTracks = 0;
   }
+});
+
+ui.saveSession.addEventListener('click', () => send({ type: ToWorker.SAVE_SESSION }));
+ui.sessionInput.addEventListener('change', async () => {
+  const file = ui.sessionInput.files?.[0];
+  ui.sessionInput.value = ''; // the same file chosen again is a new change
+  if (!file) return;
+  const bytes = await file.arrayBuffer();
+  send({ type: ToWorker.OPEN_SESSION, name: file.name, bytes, localise: ui.sessionLocalise.checked }, [bytes]);
 });
 
 wireViewControls({ renderer, plots });

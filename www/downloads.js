@@ -23,6 +23,11 @@ export function downloadMirror(mirror, what, sequenceName) {
   else download(new Blob([mirror.trajectoryTum()], { type: 'text/plain' }), `${base}_trajectory.txt`);
 }
 
+/** Saves a session file (FromWorker.SESSION_SAVED's bytes) as `<sequence>.slam`. */
+export function downloadSession(bytes, sequenceName) {
+  download(new Blob([bytes], { type: 'application/zip' }), `${baseName(sequenceName)}.slam`);
+}
+
 /** Whether an EXPORT message answers a mesh (or point cloud) request. */
 export const isMeshExport = (msg) => msg.what.startsWith('mesh-') || msg.what === 'points-glb';
 

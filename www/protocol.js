@@ -29,6 +29,10 @@ export const ToWorker = Object.freeze({
   EXPORT_MESH: 'exportMesh',
   /** Mesh the map for the page's mesh view; answered by MESH_PROGRESS messages, then MESH. */
   VIEW_MESH: 'viewMesh',
+  /** The Slam as a session file (Slam.save); answered by SESSION_SAVED. */
+  SAVE_SESSION: 'saveSession',
+  /** {name, bytes (ArrayBuffer of a .slam file), localise}: replace the map by a saved session (Slam.load); answered by SESSION_OPENED or SESSION_ERROR. */
+  OPEN_SESSION: 'openSession',
   /** Test hook, honoured only when the worker's URL has testHooks=1: the module fails at the next call. */
   TEST_BREAK: 'test-break',
   /** Test hook (testHooks=1): the next frame never returns, as when one of the module's threads panics. */
@@ -39,7 +43,7 @@ export const ToWorker = Object.freeze({
 export const FromWorker = Object.freeze({
   /** {module: 'threads'|'simd', threads, presets, notes, frameReader}: the module is loaded. */
   READY: 'ready',
-  /** {name, kind, preset, config, frameCount, groundTruth, fileCount, warnings}: a sequence was opened (warnings: camera settings that do not fit its layout). */
+  /** {name, kind, preset, config, frameCount, groundTruth, fileCount, warnings, session?}: a sequence was opened (session: as SESSION_OPENED's, when it goes on from an opened session) (warnings: camera settings that do not fit its layout). */
   SEQUENCE: 'sequence',
   /** {index, frameCount, timestamp, result, surfels, refresh, ate, timing, input, flow, done}: one frame processed. */
   FRAME: 'frame',
@@ -61,6 +65,12 @@ export const FromWorker = Object.freeze({
   MESH: 'mesh',
   /** {message, frames}: the wasm module failed; playback stopped, it is rebuilt at the next action. */
   MODULE_FAILED: 'module-failed',
+  /** {bytes, name, ms} or {error}: the session file SAVE_SESSION asked for (ms: time in Slam.save). */
+  SESSION_SAVED: 'session-saved',
+  /** {name, ms, config, session: {frames, surfels, localising, map, trajectoryTum}}: a session replaced the map (ms: time in Slam.load); map is copySurfels' whole map. */
+  SESSION_OPENED: 'session-opened',
+  /** {name, message}: a session file was refused (message starts with its kind: 'truncated: ', ...); the map stays. */
+  SESSION_ERROR: 'session-error',
   /** {message}: the worker itself cannot go on (module not loadable, internal error). */
   FATAL: 'fatal',
 });

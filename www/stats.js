@@ -102,6 +102,16 @@ export class Stats {
     this.render();
   }
 
+  /** A session was opened: its frames and surfels (the rest starts afresh). */
+  onSession({ frames, surfels }) {
+    this.reset();
+    this.framesProcessed = frames;
+    this.framesTracked = frames;
+    this.surfels = surfels;
+    this.surfelSlots = surfels;
+    this.render();
+  }
+
   onFailedFrame(msg) {
     this.framesFailed++;
     this.frameIndex = msg.index;

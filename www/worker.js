@@ -26,6 +26,7 @@ import { FrameFeed, describeFrameError } from './frame-feed.js';
 import { copyChanged, RollingRefresh, surfelBuffers } from './surfel-copy.js';
 import { coversWholeMap } from './surfel-buffers.js';
 import { answerExport } from './worker-exports.js';
+import { sessionCameraConfig, sessionSnapshot } from './worker-session.js';
 
 let wasm = null;
 let moduleKind = null;
@@ -48,6 +49,9 @@ let testBreak = false; // test hook: the next call into the module fails
 let testHang = false; // test hook: the next frame never returns
 const testHooks = new URL(self.location.href).searchParams.get('testHooks') === '1';
 const refresh = new RollingRefresh();
+// {localise, bytes}: the map is an opened session; the next sequence goes on
+// in it (continues mapping, or localises) instead of starting a new map.
+let session = null;
 
 const post = (msg, transfer = []) => self.postMessage(msg, transfer);
 
@@ -180,6 +184,7 @@ function layoutWarnings(layoutPreset) {
 
 /** Back to frame 0 with an empty map (the Slam already is). */
 function restart() {
+  session = null;
   next = 0;
   framesOk = 0;
   surfelCount = 0;
@@ -239,16 +244,23 @@ async function load({ name, entries, autoplay, options }) {
   newConfig.preset = preset;
   // The page's own choices carry over to a new sequence.
   for (const key of ['tracker', 'halfResolution', 'noise', 'loopClosure']) if (options?.[key] !== undefined) newConfig[key] = options[key];
+  let continued = null;
   try {
-    createSlam(newConfig);
+    if (session) continued = continueSession(newConfig);
+    else createSlam(newConfig);
   } catch (e) {
     if (isModuleFailure(e)) throw e;
-    post({ type: FromWorker.LOAD_ERROR, name, message: `${name}: camera preset ${preset}: ${errorText(e)}` });
+    const what = session ? `the opened session does not fit this sequence: ${errorText(e)}` : `camera preset ${preset}: ${errorText(e)}`;
+    post({ type: FromWorker.LOAD_ERROR, name, message: `${name}: ${what}` });
+    reportState();
     return;
   }
   const groundTruth = (parsed.groundTruth || []).map((row) => Array.from(row));
   // Slam.ate reads the ground truth as TUM text ('' when there is none).
   seq = { id: ++seqCounter, name, kind: parsed.kind, source, frames: parsed.frames, gtTum: parsed.groundTruthTum || null, layoutPreset: preset };
+  // The sequence a session was saved from (its download is <sequence>.slam)
+  // continues at the frame after the session's last; another starts at its first.
+  if (continued && !session.localise && sessionStem(session.name) === name) next = Math.min(slam.frames, seq.frames.length);
   feed.setSequence(seq.id, entries, source, seq.frames);
   post({
     type: FromWorker.SEQUENCE,
@@ -260,10 +272,98 @@ async function load({ name, entries, autoplay, options }) {
     groundTruth,
     fileCount: paths.length,
     warnings: layoutWarnings(preset),
+    session: continued,
   });
   playing = !!autoplay;
   reportState();
   if (playing) pump();
+}
+
+// ---- sessions (Slam.save / Slam.load) ------------------------------------------
+
+/** The sequence name in a session file's name (the page saves `<sequence>.slam`). */
+const sessionStem = (fileName) => String(fileName ?? '').replace(/\.(slam|zip)$/i, '');
+
+/** The map as a session file, for the page to download. */
+function saveSession() {
+  if (failure || !slam) {
+    post({ type: FromWorker.SESSION_SAVED, error: 'nothing to save: no map (open a sequence or a session first)' });
+    return;
+  }
+  const t0 = performance.now();
+  let bytes;
+  try {
+    bytes = slam.localising && session ? session.bytes.slice() : slam.save();
+  } catch (e) {
+    if (isModuleFailure(e)) throw e;
+    post({ type: FromWorker.SESSION_SAVED, error: errorText(e) });
+    return;
+  }
+  const ms = performance.now() - t0;
+  post({ type: FromWorker.SESSION_SAVED, bytes, name: seq?.name ?? null, ms }, [bytes.buffer]);
+}
+
+/**
+ * Replaces the map by the session in `bytes`: in a new Slam with the
+ * session's camera, so that a refused file leaves the current Slam as it was.
+ */
+async function openSession({ name, bytes, localise }) {
+  await freshModule();
+  const data = new Uint8Array(bytes);
+  const t0 = performance.now();
+  const sessionConfig = sessionCameraConfig(wasm, data, name) ?? config ?? { preset: 'tum-fr3' };
+  let fresh = null;
+  try {
+    fresh = new wasm.Slam(sessionConfig);
+    fresh.load(data, { localise: !!localise });
+  } catch (e) {
+    if (isModuleFailure(e)) throw e;
+    fresh?.free();
+    post({ type: FromWorker.SESSION_ERROR, name, message: errorText(e) });
+    reportState();
+    return;
+  }
+  const ms = performance.now() - t0;
+  playing = false;
+  if (slam) slam.free();
+  slam = fresh;
+  config = sessionConfig;
+  restart();
+  session = { localise: !!localise, bytes: data, name };
+  // Continuing the sequence that is open goes on at the frame after the
+  // session's last; localising (or another sequence, see load) starts at its first.
+  framesOk = slam.frames;
+  surfelCount = slam.surfelCount;
+  slam.takeChangedRange(); // the page gets the whole map below
+  if (seq && !localise) next = Math.min(slam.frames, seq.frames.length);
+  post({ type: FromWorker.SESSION_OPENED, name, ms, config: sessionConfig, session: sessionSnapshot(slam) });
+  reportState();
+}
+
+/**
+ * A sequence opened after a session: the session's map (with the frames
+ * pushed since) in a Slam with the sequence's camera (Slam.load refuses
+ * another camera: 'camera-mismatch: ...'). Returns the page's snapshot.
+ */
+function continueSession(newConfig) {
+  const bytes = slam.localising ? session.bytes : slam.save();
+  const fresh = new wasm.Slam(newConfig);
+  try {
+    fresh.load(bytes, { localise: session.localise });
+  } catch (e) {
+    fresh.free();
+    throw e;
+  }
+  const kept = session;
+  slam.free();
+  slam = fresh;
+  config = newConfig;
+  restart();
+  session = { ...kept, bytes: kept.localise ? kept.bytes : bytes };
+  framesOk = slam.frames;
+  surfelCount = slam.surfelCount;
+  slam.takeChangedRange();
+  return sessionSnapshot(slam);
 }
 
 // ---- the frame loop -----------------------------------------------------------
@@ -542,6 +642,12 @@ self.onmessage = async (event) => {
     case ToWorker.EXPORT_MESH:
     case ToWorker.VIEW_MESH:
       serial(() => answerExport(msg, exportFrom, seq?.name));
+      break;
+    case ToWorker.SAVE_SESSION:
+      serial(saveSession);
+      break;
+    case ToWorker.OPEN_SESSION:
+      serial(() => openSession(msg));
       break;
     case ToWorker.TEST_BREAK:
     case ToWorker.TEST_HANG:

@@ -1,0 +1,114 @@
+// Sessions in the page (issue #36): the bundled sample played part way and
+// saved ("Save session" downloads <sequence>.slam), the page reloaded, the
+// file opened ("Open session") -> the frame and surfel counts and the camera
+// path are the saved ones; a truncated copy and a file that is no session are
+// refused with their kind in the message box and the loaded map stays; the
+// sample opened again then continues the session to its last frame.
+import { test } from 'node:test';
+import assert from 'node:assert/strict';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { REPO, startBrowser, openPage, waitForStatus, getStatus, skipUnlessReady } from './helpers.mjs';
+
+const SAVE_AFTER = 15; // frames of the 44-frame sample before saving
+
+async function downloadTrajectory(page) {
+  const [download] = await Promise.all([page.waitForEvent('download'), page.locator('#trajectory-button').click()]);
+  return fs.readFileSync(await download.path(), 'utf8').split('\n').filter((l) => l.trim() && !l.startsWith('#'));
+}
+
+/** Chooses `file` in the Open session input and waits for the page's answer (opened or refused). */
+async function openSession(page, file) {
+  const before = await getStatus(page);
+  await page.locator('#session-input').setInputFiles(file);
+  return waitForStatus(page, (s) => s.errors.length > before.errors.length || (s.session && s.sessionOpenMs !== before.sessionOpenMs), {
+    timeoutMs: 60_000,
+  });
+}
+
+test('Save session, reload, Open session restores the map; bad files are refused by kind; the sample then continues', { timeout: 600_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const env = await startBrowser();
+  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'surfel-slam-session-'));
+  try {
+    // The bundled sample plays by itself: pause it part way.
+    let { page, consoleErrors } = await openPage(env, '/');
+    let s = await waitForStatus(page, (x) => x.framesProcessed >= SAVE_AFTER, { timeoutMs: 180_000 });
+    assert.ok(s.framesProcessed >= SAVE_AFTER, `sample played: ${s.framesProcessed} frames (${s.error})`);
+    await page.locator('#play-button').click(); // Pause
+    s = await waitForStatus(page, (x) => !x.playing, { timeoutMs: 60_000 });
+    await page.waitForTimeout(300); // the frame under way when Pause arrived
+    s = await getStatus(page);
+    assert.ok(!s.done, 'paused before the end of the sample');
+    const saved = { frames: s.framesProcessed, surfels: s.surfels };
+    const savedPath = await downloadTrajectory(page);
+    assert.equal(savedPath.length, saved.frames, 'one pose a frame');
+
+    assert.equal(await page.locator('#save-session-button').isDisabled(), false, 'Save session is enabled with a map');
+    const [download] = await Promise.all([page.waitForEvent('download'), page.locator('#save-session-button').click()]);
+    assert.equal(download.suggestedFilename(), 'tum_fr3_teddy_clip.slam');
+    const sessionFile = path.join(dir, download.suggestedFilename());
+    fs.copyFileSync(await download.path(), sessionFile);
+    const bytes = fs.readFileSync(sessionFile);
+    assert.equal(bytes.subarray(0, 2).toString('latin1'), 'PK', 'the session is a zip');
+    s = await getStatus(page);
+    t.diagnostic(`saved after ${saved.frames} frames: ${saved.surfels} surfels, ${bytes.length} bytes, Slam.save ${s.sessionSaveMs} ms`);
+
+    // A reload (no sample this time): nothing mapped, Save session disabled.
+    await page.goto(new URL('/?sample=0', env.server.url).href);
+    s = await waitForStatus(page, (x) => x.ready, { timeoutMs: 60_000 });
+    assert.equal(s.surfels, 0);
+    assert.equal(await page.locator('#save-session-button').isDisabled(), true, 'Save session is disabled with no map');
+
+    s = await openSession(page, sessionFile);
+    t.diagnostic(`opened: ${s.framesProcessed} frames, ${s.surfels} surfels, Slam.load ${s.sessionOpenMs} ms (${s.module} module)`);
+    assert.deepEqual(s.errors, [], 'the saved session opens');
+    assert.equal(s.framesProcessed, saved.frames, 'frame count restored');
+    assert.equal(s.surfels, saved.surfels, 'surfel count restored');
+    assert.equal(s.session?.name, 'tum_fr3_teddy_clip.slam');
+    assert.deepEqual(await downloadTrajectory(page), savedPath, 'the camera path restored (TUM text, line for line)');
+    assert.match(await page.locator('#stats').textContent(), new RegExp(saved.surfels.toLocaleString('en-US')));
+    assert.equal(await page.locator('#save-session-button').isDisabled(), false, 'an opened session can be saved again');
+
+    // Bad files: refused by kind, the opened map stays.
+    const truncated = path.join(dir, 'truncated.slam');
+    fs.writeFileSync(truncated, bytes.subarray(0, Math.floor(bytes.length / 2)));
+    const notSession = path.join(dir, 'notes.slam');
+    fs.writeFileSync(notSession, 'these are notes, not a session\n'.repeat(40));
+    const sampleZip = path.join(dir, 'pictures.zip');
+    // A zip, but not a session: the session file's own bytes with the manifest's name changed.
+    fs.writeFileSync(sampleZip, Buffer.from(bytes.toString('latin1').replaceAll('manifest.json', 'manifest.jsoX'), 'latin1'));
+    for (const [file, kind] of [
+      [truncated, 'truncated'],
+      [notSession, 'not-a-session'],
+      [sampleZip, 'not-a-session'],
+    ]) {
+      s = await openSession(page, file);
+      const shown = s.shownErrors[0] ?? '';
+      t.diagnostic(`${path.basename(file)}: ${shown}`);
+      assert.match(shown, new RegExp(`${path.basename(file)}: ${kind}:`), `the message names the kind (${kind})`);
+      assert.ok(await page.locator('#message').isVisible(), 'the message box is shown');
+      const box = await page.locator('#message').boundingBox();
+      assert.ok(box && box.y >= 0 && box.y < 800, `the message is in view: ${JSON.stringify(box)}`);
+      assert.equal(s.framesProcessed, saved.frames, `${kind}: frames unchanged`);
+      assert.equal(s.surfels, saved.surfels, `${kind}: surfels unchanged`);
+    }
+    assert.deepEqual(await downloadTrajectory(page), savedPath, 'the path is still the session\'s');
+
+    // The sample opened now continues the session at its next frame, to the end.
+    await page.locator('#sample-button').click();
+    s = await waitForStatus(page, (x) => x.done && !x.playing, { timeoutMs: 240_000 });
+    t.diagnostic(`continued: ${s.framesProcessed} frames, ${s.surfels} surfels, ATE ${s.ate} m, errors ${JSON.stringify(s.errors)}`);
+    assert.equal(s.framesProcessed, s.frameCount, 'the saved frames and the rest of the sample, each once');
+    assert.equal(s.framesLost, 0);
+    assert.ok(Number.isFinite(s.ate) && s.ate < 0.05, `ATE after continuing ${s.ate} m`);
+    const fullPath = await downloadTrajectory(page);
+    assert.equal(fullPath.length, s.frameCount);
+    assert.deepEqual(fullPath.slice(0, saved.frames), savedPath, 'the saved poses stay as they were');
+    assert.deepEqual(consoleErrors, []);
+  } finally {
+    await env.close();
+    fs.rmSync(dir, { recursive: true, force: true });
+  }
+});
