@@ -16,6 +16,7 @@ import { DisplayFrame, GroundTruthTrack } from './display-frame.js';
 import { downloadMirror, downloadSession, isMeshExport, saveExport } from './downloads.js';
 import { wireViewControls } from './view-controls.js';
 import { MessageBoard } from './messages.js';
+import { loadLastSession, storeLastSession } from './session-store.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -66,6 +67,8 @@ const status = {
   sessionSaveMs: null, // time of the last Slam.save in the worker, ms
   sessionSaveBytes: null, // size of the last session saved, bytes
   sessionOpenMs: null, // time of the last Slam.load in the worker (manifest read included), ms
+  lastSessionStored: null, // {name, bytes} of the last session kept in IndexedDB by this page (null: none yet)
+  lastSessionOffered: null, // name of the session "Restore last session" offers (null: none)
 };
 window.surfelSlamStatus = status;
 
@@ -119,8 +122,17 @@ function clearMessages() {
   status.error = null;
   status.warnings = [];
   board.clear();
-  status.shownErrors = [];
+  // The offer of the last session outlives the run that cleared the rest.
+  if (lastSessionOffer) board.report(...lastSessionOffer);
+  status.shownErrors = board.texts();
 }
+
+// [text, kind, action] of "Restore last session" while it is offered (see offerLastSession).
+let lastSessionOffer = null;
+$('message-close').addEventListener('click', () => {
+  lastSessionOffer = null;
+  status.lastSessionOffered = null;
+});
 
 // ---- renderer, views, stats ------------------------------------------------------
 
@@ -391,9 +403,11 @@ const handlers = {
 
   [FromWorker.SESSION_SAVED](msg) {
     if (msg.error) {
-      reportError(`cannot save the session: ${msg.error}`);
+      if (!msg.keep) reportError(`cannot save the session: ${msg.error}`);
       return;
     }
+    keepLastSession(msg.bytes, msg.name ?? sequence?.name);
+    if (msg.keep) return; // kept for "Restore last session" only
     status.sessionSaveMs = Number(msg.ms.toFixed(1));
     status.sessionSaveBytes = msg.bytes.byteLength;
     console.info(`surfel-slam: session saved in ${status.sessionSaveMs} ms, ${msg.bytes.byteLength} bytes`);
@@ -470,6 +484,10 @@ const handlers = {
   },
 
   [FromWorker.STATE](msg) {
+    // Paused or at the end: the map is kept for "Restore last session".
+    // Not while the last one is offered: a sample playing after a reload would replace it.
+    // (status.playing: the worker's last word; workerPlaying changes on the click.)
+    if (status.playing && !msg.playing && !msg.failed && msg.surfels > 0 && !lastSessionOffer) send({ type: ToWorker.SAVE_SESSION, keep: true });
     workerPlaying = msg.playing;
     status.failed = msg.failed === true;
     if (renderer) renderer.throttle = msg.playing;
@@ -585,6 +603,45 @@ $('show-flow').addEventListener('change', (e) => {
 });
 
 ui.saveSession.addEventListener('click', () => send({ type: ToWorker.SAVE_SESSION }));
+
+/** The session kept in IndexedDB for "Restore last session" (a refusal only loses the offer). */
+function keepLastSession(bytes, sequenceName) {
+  const name = `${(sequenceName || 'surfel-slam').replace(/[^\w.-]+/g, '_')}.slam`;
+  storeLastSession(bytes, name).then(
+    () => (status.lastSessionStored = { name, bytes: bytes.byteLength }),
+    (e) => console.warn(`surfel-slam: the last session was not kept in the browser: ${e?.message ?? e}`),
+  );
+}
+
+/** On opening the page: the session kept last, if any, offered back. */
+async function offerLastSession() {
+  let last = null;
+  try {
+    last = await loadLastSession();
+  } catch (e) {
+    console.warn(`surfel-slam: cannot read the last session kept in the browser: ${e?.message ?? e}`);
+  }
+  if (!last?.bytes) return;
+  const when = new Date(last.savedAt).toLocaleString();
+  status.lastSessionOffered = last.name;
+  lastSessionOffer = [
+    `last session: ${last.name} (${(last.bytes.byteLength / 1e6).toFixed(1)} MB, kept ${when})`,
+    'offer',
+    {
+      label: 'Restore last session',
+      run: () => {
+        lastSessionOffer = null;
+        status.lastSessionOffered = null;
+        status.shownErrors = board.texts();
+        const bytes = last.bytes.buffer.slice(last.bytes.byteOffset, last.bytes.byteOffset + last.bytes.byteLength);
+        send({ type: ToWorker.OPEN_SESSION, name: last.name, bytes, localise: ui.sessionLocalise.checked }, [bytes]);
+      },
+    },
+  ];
+  board.report(...lastSessionOffer);
+  status.shownErrors = board.texts();
+}
+offerLastSession();
 ui.sessionInput.addEventListener('change', async () => {
   const file = ui.sessionInput.files?.[0];
   ui.sessionInput.value = ''; // the same file chosen again is a new change

@@ -15,9 +15,13 @@ export class MessageBoard {
     el.close.addEventListener('click', () => this.clear());
   }
 
-  /** Shows `text` first, above the earlier messages of this run; `kind`: 'error' or 'warning'. */
-  report(text, kind = 'error') {
-    this.shown.unshift({ text, kind });
+  /**
+   * Shows `text` first, above the earlier messages of this run; `kind`:
+   * 'error', 'warning' or 'offer'; `action`: {label, run} adds a button that
+   * runs it (and removes the message).
+   */
+  report(text, kind = 'error', action = null) {
+    this.shown.unshift({ text, kind, action });
     if (this.shown.length > SHOWN) {
       this.shown.length = SHOWN;
       this.older++;
@@ -43,6 +47,17 @@ export class MessageBoard {
       const li = document.createElement('li');
       li.textContent = m.text;
       li.className = i === 0 ? `${m.kind} latest` : m.kind;
+      if (m.action) {
+        const button = document.createElement('button');
+        button.type = 'button';
+        button.textContent = m.action.label;
+        button.addEventListener('click', () => {
+          this.shown = this.shown.filter((x) => x !== m);
+          this.render();
+          m.action.run();
+        });
+        li.append(' ', button);
+      }
       return li;
     });
     if (this.older > 0) {

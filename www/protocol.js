@@ -29,7 +29,7 @@ export const ToWorker = Object.freeze({
   EXPORT_MESH: 'exportMesh',
   /** Mesh the map for the page's mesh view; answered by MESH_PROGRESS messages, then MESH. */
   VIEW_MESH: 'viewMesh',
-  /** The Slam as a session file (Slam.save); answered by SESSION_SAVED. */
+  /** {keep}: the Slam as a session file (Slam.save); answered by SESSION_SAVED (keep: for the browser's storage, not a download). */
   SAVE_SESSION: 'saveSession',
   /** {name, bytes (ArrayBuffer of a .slam file), localise}: replace the map by a saved session (Slam.load); answered by SESSION_OPENED or SESSION_ERROR. */
   OPEN_SESSION: 'openSession',
@@ -65,7 +65,7 @@ export const FromWorker = Object.freeze({
   MESH: 'mesh',
   /** {message, frames}: the wasm module failed; playback stopped, it is rebuilt at the next action. */
   MODULE_FAILED: 'module-failed',
-  /** {bytes, name, ms} or {error}: the session file SAVE_SESSION asked for (ms: time in Slam.save). */
+  /** {keep, bytes, name, ms} or {keep, error}: the session file SAVE_SESSION asked for (ms: time in Slam.save). */
   SESSION_SAVED: 'session-saved',
   /** {name, ms, config, session: {frames, surfels, localising, map, trajectoryTum}}: a session replaced the map (ms: time in Slam.load); map is copySurfels' whole map. */
   SESSION_OPENED: 'session-opened',

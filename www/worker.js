@@ -285,9 +285,9 @@ async function load({ name, entries, autoplay, options }) {
 const sessionStem = (fileName) => String(fileName ?? '').replace(/\.(slam|zip)$/i, '');
 
 /** The map as a session file, for the page to download. */
-function saveSession() {
+function saveSession({ keep }) {
   if (failure || !slam) {
-    post({ type: FromWorker.SESSION_SAVED, error: 'nothing to save: no map (open a sequence or a session first)' });
+    post({ type: FromWorker.SESSION_SAVED, keep, error: 'nothing to save: no map (open a sequence or a session first)' });
     return;
   }
   const t0 = performance.now();
@@ -296,11 +296,11 @@ function saveSession() {
     bytes = slam.localising && session ? session.bytes.slice() : slam.save();
   } catch (e) {
     if (isModuleFailure(e)) throw e;
-    post({ type: FromWorker.SESSION_SAVED, error: errorText(e) });
+    post({ type: FromWorker.SESSION_SAVED, keep, error: errorText(e) });
     return;
   }
   const ms = performance.now() - t0;
-  post({ type: FromWorker.SESSION_SAVED, bytes, name: seq?.name ?? null, ms }, [bytes.buffer]);
+  post({ type: FromWorker.SESSION_SAVED, keep, bytes, name: seq?.name ?? null, ms }, [bytes.buffer]);
 }
 
 /**
@@ -644,7 +644,7 @@ self.onmessage = async (event) => {
       serial(() => answerExport(msg, exportFrom, seq?.name));
       break;
     case ToWorker.SAVE_SESSION:
-      serial(saveSession);
+      serial(() => saveSession({ keep: !!msg.keep }));
       break;
     case ToWorker.OPEN_SESSION:
       serial(() => openSession(msg));

@@ -112,3 +112,35 @@ test('Save session, reload, Open session restores the map; bad files are refused
     fs.rmSync(dir, { recursive: true, force: true });
   }
 });
+
+test('after a reload the page offers the session kept at the last pause, and restores it', { timeout: 300_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const env = await startBrowser();
+  try {
+    const { page, consoleErrors } = await openPage(env, '/');
+    let s = await waitForStatus(page, (x) => x.framesProcessed >= 8, { timeoutMs: 180_000 });
+    assert.equal(s.lastSessionOffered, null, 'a fresh browser has no session to offer');
+    await page.locator('#play-button').click(); // Pause: the session is kept in IndexedDB
+    s = await waitForStatus(page, (x) => !x.playing && x.lastSessionStored, { timeoutMs: 60_000 });
+    assert.ok(s.lastSessionStored, 'kept at the pause');
+    const kept = { frames: s.framesProcessed, surfels: s.surfels };
+    t.diagnostic(`kept at the pause: ${kept.frames} frames, ${kept.surfels} surfels, ${s.lastSessionStored.bytes} bytes`);
+
+    // The accidental reload: the sample plays again by itself; the message box offers the session back.
+    await page.reload();
+    s = await waitForStatus(page, (x) => x.framesProcessed >= 2 && x.lastSessionOffered, { timeoutMs: 120_000 });
+    assert.equal(s.lastSessionOffered, 'tum_fr3_teddy_clip.slam');
+    const restore = page.locator('#message-text button', { hasText: 'Restore last session' });
+    assert.ok(await restore.isVisible(), 'the offer is in the message box, in view');
+    await restore.click();
+    s = await waitForStatus(page, (x) => x.session && !x.playing, { timeoutMs: 60_000 });
+    t.diagnostic(`restored: ${s.framesProcessed} frames, ${s.surfels} surfels, Slam.load ${s.sessionOpenMs} ms`);
+    assert.equal(s.framesProcessed, kept.frames, 'frame count restored');
+    assert.equal(s.surfels, kept.surfels, 'surfel count restored');
+    assert.equal(s.lastSessionOffered, null, 'offered once');
+    assert.equal(await restore.count(), 0, 'the offer is gone');
+    assert.deepEqual(consoleErrors, []);
+  } finally {
+    await env.close();
+  }
+});
