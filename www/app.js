@@ -63,6 +63,7 @@ const status = {
   meshView: false, // the view shows the mesh instead of the splats
   meshTriangles: null, // triangles of the mesh in the view (null: none received yet)
   meshProgress: null, // fraction of the meshing under way, null when none
+  framesUnplaced: 0, // localising in an opened session: frames not found in the map (no pose)
   session: null, // {name, frames, surfels, localising}: the session file last opened (null: none since the last new map)
   sessionSaveMs: null, // time of the last Slam.save in the worker, ms
   sessionSaveBytes: null, // size of the last session saved, bytes
@@ -310,6 +311,7 @@ function clearMap() {
   status.relocalisedFrames = [];
   status.trajectoryReplaced = 0;
   status.session = null;
+  status.framesUnplaced = 0;
   mirror.clear();
   plots.reset();
   plots.setGroundTruth(!!sequence?.groundTruth.length);
@@ -439,13 +441,15 @@ const handlers = {
     if (msg.refresh) mirror.update(msg.refresh);
     mirror.addPose(msg.result);
     if (msg.trajectoryTum) replaceTrajectory(msg.trajectoryTum);
-    const pose = display.pose(msg.result.pose);
+    // Localising in an opened session: a frame not found in the map has no pose ('unplaced').
+    const pose = msg.result.pose ? display.pose(msg.result.pose) : null;
+    if (!pose) status.framesUnplaced++;
     if (renderer) {
       renderer.updateSurfels(display.chunk(msg.surfels));
       if (msg.refresh) renderer.updateSurfels(display.chunk(msg.refresh));
-      renderer.setCameraPose(pose, display.intrinsics(settings.current()));
+      if (pose) renderer.setCameraPose(pose, display.intrinsics(settings.current()));
     }
-    const error = sequence ? sequence.groundTruth.error(msg.timestamp, pose, display, (points) => renderer?.setGroundTruth(points)) : null;
+    const error = sequence && pose ? sequence.groundTruth.error(msg.timestamp, pose, display, (points) => renderer?.setGroundTruth(points)) : null;
     status.positionErrorCm = error === null ? status.positionErrorCm : Number((error * 100).toFixed(3));
     const relocalised = Number.isFinite(msg.result.relocalisedFrom);
     if (relocalised) status.relocalisedFrames.push(msg.index);

@@ -144,3 +144,45 @@ test('after a reload the page offers the session kept at the last pause, and res
     await env.close();
   }
 });
+
+test('with "localise", the sample opened after a session is placed in its map without changing it', { timeout: 300_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const env = await startBrowser();
+  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'surfel-slam-session-'));
+  try {
+    const { page, consoleErrors } = await openPage(env, '/');
+    let s = await waitForStatus(page, (x) => x.framesProcessed >= SAVE_AFTER, { timeoutMs: 180_000 });
+    await page.locator('#play-button').click(); // Pause
+    await waitForStatus(page, (x) => !x.playing, { timeoutMs: 60_000 });
+    await page.waitForTimeout(300);
+    s = await getStatus(page);
+    const saved = { frames: s.framesProcessed, surfels: s.surfels };
+    const [download] = await Promise.all([page.waitForEvent('download'), page.locator('#save-session-button').click()]);
+    const sessionFile = path.join(dir, download.suggestedFilename());
+    fs.copyFileSync(await download.path(), sessionFile);
+
+    await page.goto(new URL('/?sample=0', env.server.url).href);
+    await waitForStatus(page, (x) => x.ready, { timeoutMs: 60_000 });
+    await page.locator('#session-localise').check();
+    s = await openSession(page, sessionFile);
+    assert.equal(s.session?.localising, true, 'opened for localisation');
+    assert.equal(s.surfels, saved.surfels);
+
+    // The whole sample, from its first frame, placed in the map of its first frames.
+    await page.locator('#sample-button').click();
+    s = await waitForStatus(page, (x) => x.done && !x.playing, { timeoutMs: 240_000 });
+    const localised = s.framesProcessed - saved.frames;
+    t.diagnostic(
+      `localised ${localised} frames in a map of ${saved.frames}: ${s.framesUnplaced} unplaced, ATE of the placed ${s.ate} m, ` +
+        `surfels ${s.surfels} (saved ${saved.surfels}), errors ${JSON.stringify(s.errors)}`,
+    );
+    assert.equal(localised, s.frameCount, 'every frame of the sample localised, from its first');
+    assert.equal(s.surfels, saved.surfels, 'localising does not change the map');
+    assert.ok(s.framesUnplaced < s.frameCount / 2, `most frames placed (${s.framesUnplaced} of ${s.frameCount} unplaced)`);
+    assert.ok(Number.isFinite(s.ate) && s.ate < 0.05, `ATE of the placed frames ${s.ate} m`);
+    assert.deepEqual(consoleErrors, []);
+  } finally {
+    await env.close();
+    fs.rmSync(dir, { recursive: true, force: true });
+  }
+});
