@@ -1,15 +1,16 @@
 // Sessions in the page (issue #36): the bundled sample played part way and
 // saved ("Save session" downloads <sequence>.slam), the page reloaded, the
 // file opened ("Open session") -> the frame and surfel counts and the camera
-// path are the saved ones; a truncated copy and a file that is no session are
-// refused with their kind in the message box and the loaded map stays; the
-// sample opened again then continues the session to its last frame.
+// path are the saved ones; a truncated copy, a damaged one, files that are no
+// session and a sequence of another camera are refused with their kind in the
+// message box and the loaded map stays; the sample opened again then continues
+// the session to its last frame, as Replay of it uninterrupted.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
-import { REPO, startBrowser, openPage, waitForStatus, getStatus, skipUnlessReady } from './helpers.mjs';
+import { REPO, startBrowser, openPage, waitForStatus, getStatus, skipUnlessReady, makeTumClip } from './helpers.mjs';
 
 const SAVE_AFTER = 15; // frames of the 44-frame sample before saving
 
@@ -79,8 +80,13 @@ test('Save session, reload, Open session restores the map; bad files are refused
     const sampleZip = path.join(dir, 'pictures.zip');
     // A zip, but not a session: the session file's own bytes with the manifest's name changed.
     fs.writeFileSync(sampleZip, Buffer.from(bytes.toString('latin1').replaceAll('manifest.json', 'manifest.jsoX'), 'latin1'));
+    const corrupt = path.join(dir, 'corrupt.slam');
+    const damaged = Buffer.from(bytes);
+    damaged[Math.floor(damaged.length / 3)] ^= 0xff;
+    fs.writeFileSync(corrupt, damaged);
     for (const [file, kind] of [
       [truncated, 'truncated'],
+      [corrupt, 'corrupt'],
       [notSession, 'not-a-session'],
       [sampleZip, 'not-a-session'],
     ]) {
@@ -94,6 +100,20 @@ test('Save session, reload, Open session restores the map; bad files are refused
       assert.equal(s.framesProcessed, saved.frames, `${kind}: frames unchanged`);
       assert.equal(s.surfels, saved.surfels, `${kind}: surfels unchanged`);
     }
+    // A sequence of another camera (the sample's images under a fr1 name: the TUM fr1 camera)
+    // cannot go on in the session: refused by kind, the session's map stays.
+    const fr1 = makeTumClip(path.join(REPO, 'www/sample/tum_fr3_teddy_clip'), 3, 'rgbd_dataset_freiburg1_teddy');
+    try {
+      const before = (await getStatus(page)).errors.length;
+      await page.locator('#folder-input').setInputFiles(fr1.dir);
+      s = await waitForStatus(page, (x) => x.errors.length > before, { timeoutMs: 60_000 });
+    } finally {
+      fs.rmSync(fr1.parent, { recursive: true, force: true });
+    }
+    t.diagnostic(`fr1 folder: ${s.shownErrors[0]}`);
+    assert.match(s.shownErrors[0] ?? '', /rgbd_dataset_freiburg1_teddy: the opened session does not fit this sequence: camera-mismatch: /);
+    assert.equal(s.framesProcessed, saved.frames, 'camera-mismatch: frames unchanged');
+    assert.equal(s.surfels, saved.surfels, 'camera-mismatch: surfels unchanged');
     assert.deepEqual(await downloadTrajectory(page), savedPath, 'the path is still the session\'s');
 
     // The sample opened now continues the session at its next frame, to the end.
