@@ -1,15 +1,18 @@
 // Sessions in the page (issue #36): the bundled sample played part way and
 // saved ("Save session" downloads <sequence>.slam), the page reloaded, the
 // file opened ("Open session") -> the frame and surfel counts and the camera
-// path are the saved ones; a truncated copy, a damaged one, files that are no
-// session and a sequence of another camera are refused with their kind in the
-// message box and the loaded map stays; the sample opened again then continues
-// the session to its last frame, as Replay of it uninterrupted.
+// path are the saved ones; a truncated copy, a damaged one, one of a newer
+// format, files that are no session and a sequence of another camera are
+// refused with their kind in the message box and the loaded map stays; the
+// sample opened again then continues the session to its last frame, as
+// Replay of it uninterrupted. Then the last session offered back after a
+// reload (IndexedDB), and the sample localised in a session.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
+import zlib from 'node:zlib';
 import { REPO, startBrowser, openPage, waitForStatus, getStatus, skipUnlessReady, makeTumClip } from './helpers.mjs';
 
 const SAVE_AFTER = 15; // frames of the 44-frame sample before saving
@@ -17,6 +20,45 @@ const SAVE_AFTER = 15; // frames of the 44-frame sample before saving
 async function downloadTrajectory(page) {
   const [download] = await Promise.all([page.waitForEvent('download'), page.locator('#trajectory-button').click()]);
   return fs.readFileSync(await download.path(), 'utf8').split('\n').filter((l) => l.trim() && !l.startsWith('#'));
+}
+
+/** The first entry of a zip file (the session's manifest.json): name and inflated bytes. */
+function firstZipEntry(zip) {
+  const method = zip.readUInt16LE(8);
+  const size = zip.readUInt32LE(18);
+  const nameLength = zip.readUInt16LE(26);
+  const start = 30 + nameLength + zip.readUInt16LE(28);
+  const data = zip.subarray(start, start + size);
+  return { name: zip.subarray(30, 30 + nameLength).toString('utf8'), bytes: method === 8 ? zlib.inflateRawSync(data) : data };
+}
+
+/** A zip holding one stored file. */
+function zipOf(name, bytes) {
+  const nameBytes = Buffer.from(name, 'utf8');
+  const crc = zlib.crc32(bytes);
+  const local = Buffer.alloc(30);
+  local.writeUInt32LE(0x04034b50, 0);
+  local.writeUInt16LE(20, 4);
+  local.writeUInt32LE(crc, 14);
+  local.writeUInt32LE(bytes.length, 18);
+  local.writeUInt32LE(bytes.length, 22);
+  local.writeUInt16LE(nameBytes.length, 26);
+  const central = Buffer.alloc(46);
+  central.writeUInt32LE(0x02014b50, 0);
+  central.writeUInt16LE(20, 4);
+  central.writeUInt16LE(20, 6);
+  central.writeUInt32LE(crc, 16);
+  central.writeUInt32LE(bytes.length, 20);
+  central.writeUInt32LE(bytes.length, 24);
+  central.writeUInt16LE(nameBytes.length, 28);
+  const centralOffset = local.length + nameBytes.length + bytes.length;
+  const end = Buffer.alloc(22);
+  end.writeUInt32LE(0x06054b50, 0);
+  end.writeUInt16LE(1, 8);
+  end.writeUInt16LE(1, 10);
+  end.writeUInt32LE(central.length + nameBytes.length, 12);
+  end.writeUInt32LE(centralOffset, 16);
+  return Buffer.concat([local, nameBytes, bytes, central, nameBytes, end]);
 }
 
 /** Chooses `file` in the Open session input and waits for the page's answer (opened or refused). */
@@ -84,9 +126,16 @@ test('Save session, reload, Open session restores the map; bad files are refused
     const damaged = Buffer.from(bytes);
     damaged[Math.floor(damaged.length / 3)] ^= 0xff;
     fs.writeFileSync(corrupt, damaged);
+    // A session of a newer format: the saved manifest with a higher version.
+    const manifestEntry = firstZipEntry(bytes);
+    assert.equal(manifestEntry.name, 'manifest.json');
+    const manifest = JSON.parse(manifestEntry.bytes.toString('utf8'));
+    const future = path.join(dir, 'future.slam');
+    fs.writeFileSync(future, zipOf('manifest.json', Buffer.from(JSON.stringify({ ...manifest, version: manifest.version + 1 }))));
     for (const [file, kind] of [
       [truncated, 'truncated'],
       [corrupt, 'corrupt'],
+      [future, 'future-version'],
       [notSession, 'not-a-session'],
       [sampleZip, 'not-a-session'],
     ]) {
