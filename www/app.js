@@ -3,7 +3,8 @@
 // keeps window.surfelSlamStatus (read by the browser tests) up to date.
 // Beside this file: camera-settings.js (the settings panel), display-frame.js
 // (how the map and the ground truth are shown), downloads.js (saved files),
-// view-controls.js (the view options and the panel's scroll hint).
+// view-controls.js (the view options and the panel's scroll hint),
+// session-store.js (the last session kept in IndexedDB).
 import { Renderer } from './renderer.js';
 import { InputViews } from './views.js';
 import { Stats } from './stats.js';

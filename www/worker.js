@@ -17,7 +17,9 @@
 // Messages: ToWorker and FromWorker in protocol.js. Beside this file:
 // wasm-module.js (loading the module, telling its failures apart),
 // frame-feed.js (frames read ahead), surfel-copy.js (copies out of wasm
-// memory), worker-exports.js (downloads and the mesh view).
+// memory), worker-exports.js (downloads and the mesh view), worker-session.js
+// (session files: Save session, Open session; a sequence opened after a
+// session goes on in it).
 import { ToWorker, FromWorker } from './protocol.js';
 import { openSource } from './sequence.js';
 import { PREVIEW_WIDTH, PREVIEW_HEIGHT } from './colour-decode.js';
