@@ -421,10 +421,17 @@ const handlers = {
     status.sessionOpenMs = Number(msg.ms.toFixed(1));
     console.info(`surfel-slam: session ${msg.name} opened in ${status.sessionOpenMs} ms`);
     clearMessages();
+    if (msg.sequenceClosed) {
+      sequence = null;
+      lastLoad = null;
+      status.sequence = null;
+      status.sequenceKind = null;
+      status.frameCount = 0;
+    }
     if (!sequence) setDisplayFrame(msg.config);
     showSession(msg.name, msg.session);
     const mode = msg.session.localising ? 'the next frames are localised in it' : 'the next frames continue it';
-    ui.sequenceInfo.textContent = `session ${msg.name}: ${msg.session.frames} frames, ${msg.session.surfels} surfels; ${mode}${sequence ? ` (${sequence.name}: Play goes on)` : ' (open or drop a sequence)'}`;
+    ui.sequenceInfo.textContent = `session ${msg.name}: ${msg.session.frames} frames, ${msg.session.surfels} surfels; ${mode}${sequence ? ` (${sequence.name}: Play goes on)` : ` (open or drop a sequence${msg.sequenceClosed ? ' of its camera' : ''})`}`;
   },
 
   [FromWorker.SESSION_ERROR](msg) {

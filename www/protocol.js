@@ -67,7 +67,7 @@ export const FromWorker = Object.freeze({
   MODULE_FAILED: 'module-failed',
   /** {keep, bytes, name, ms} or {keep, error}: the session file SAVE_SESSION asked for (ms: time in Slam.save). */
   SESSION_SAVED: 'session-saved',
-  /** {name, ms, config, session: {frames, surfels, localising, map, trajectoryTum}}: a session replaced the map (ms: time in Slam.load); map is copySurfels' whole map. */
+  /** {name, ms, config, sequenceClosed, session: {frames, surfels, localising, map, trajectoryTum}}: a session replaced the map (ms: time in Slam.load; sequenceClosed: the open sequence had another camera and was closed); map is copySurfels' whole map. */
   SESSION_OPENED: 'session-opened',
   /** {name, message}: a session file was refused (message starts with its kind: 'truncated: ', ...); the map stays. */
   SESSION_ERROR: 'session-error',

@@ -313,32 +313,49 @@ async function openSession({ name, bytes, localise }) {
   await freshModule();
   const data = new Uint8Array(bytes);
   const t0 = performance.now();
-  const sessionConfig = sessionCameraConfig(wasm, data, name) ?? config ?? { preset: 'tum-fr3' };
+  const cameraConfig = sessionCameraConfig(wasm, data, name);
+  // The open sequence stays when the session has its camera; else the
+  // session's camera is taken and the sequence closed (a sequence of that
+  // camera is opened next).
+  const attempts = seq && config ? [config, cameraConfig] : [cameraConfig ?? config ?? { preset: 'tum-fr3' }];
   let fresh = null;
-  try {
-    fresh = new wasm.Slam(sessionConfig);
-    fresh.load(data, { localise: !!localise });
-  } catch (e) {
-    if (isModuleFailure(e)) throw e;
-    fresh?.free();
-    post({ type: FromWorker.SESSION_ERROR, name, message: errorText(e) });
+  let used = null;
+  let refusal = null;
+  for (const candidate of attempts) {
+    if (!candidate) continue;
+    try {
+      fresh = new wasm.Slam(candidate);
+      fresh.load(data, { localise: !!localise });
+      used = candidate;
+      break;
+    } catch (e) {
+      if (isModuleFailure(e)) throw e;
+      fresh?.free();
+      fresh = null;
+      refusal = e;
+      if (!errorText(e).startsWith('camera-mismatch:')) break;
+    }
+  }
+  if (!fresh) {
+    post({ type: FromWorker.SESSION_ERROR, name, message: errorText(refusal) });
     reportState();
     return;
   }
   const ms = performance.now() - t0;
+  const sequenceClosed = !!seq && used !== config;
+  if (sequenceClosed) seq = null;
   playing = false;
   if (slam) slam.free();
   slam = fresh;
-  config = sessionConfig;
+  config = used;
   restart();
   session = { localise: !!localise, bytes: data, name };
-  // Continuing the sequence that is open goes on at the frame after the
-  // session's last; localising (or another sequence, see load) starts at its first.
   framesOk = slam.frames;
   surfelCount = slam.surfelCount;
   slam.takeChangedRange(); // the page gets the whole map below
-  if (seq && !localise) next = Math.min(slam.frames, seq.frames.length);
-  post({ type: FromWorker.SESSION_OPENED, name, ms, config: sessionConfig, session: sessionSnapshot(slam) });
+  // The sequence the session was saved from goes on at its next frame.
+  if (seq && !localise && sessionStem(name) === seq.name) next = Math.min(slam.frames, seq.frames.length);
+  post({ type: FromWorker.SESSION_OPENED, name, ms, config: used, sequenceClosed, session: sessionSnapshot(slam) });
   reportState();
 }
 

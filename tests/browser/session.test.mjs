@@ -279,3 +279,38 @@ test('with "localise", the sample opened after a session is placed in its map wi
     fs.rmSync(dir, { recursive: true, force: true });
   }
 });
+
+test('a session of another camera than the open sequence\'s closes that sequence and keeps its own camera', { timeout: 300_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const env = await startBrowser();
+  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'surfel-slam-session-'));
+  const fr1 = makeTumClip(path.join(REPO, 'www/sample/tum_fr3_teddy_clip'), 4, 'rgbd_dataset_freiburg1_teddy');
+  try {
+    // A session of the fr1 camera: the sample's first frames under a fr1 name.
+    const { page, consoleErrors } = await openPage(env, '/?sample=0');
+    await waitForStatus(page, (x) => x.ready, { timeoutMs: 60_000 });
+    await page.locator('#folder-input').setInputFiles(fr1.dir);
+    let s = await waitForStatus(page, (x) => x.done && !x.playing && x.framesProcessed === 4, { timeoutMs: 120_000 });
+    const saved = { frames: s.framesProcessed, surfels: s.surfels };
+    const [download] = await Promise.all([page.waitForEvent('download'), page.locator('#save-session-button').click()]);
+    const sessionFile = path.join(dir, download.suggestedFilename());
+    fs.copyFileSync(await download.path(), sessionFile);
+
+    // The sample (fr3) playing: the fr1 session replaces it, with its camera.
+    await page.locator('#sample-button').click();
+    await waitForStatus(page, (x) => x.sequence === 'tum_fr3_teddy_clip' && x.framesProcessed >= 2, { timeoutMs: 120_000 });
+    s = await openSession(page, sessionFile);
+    t.diagnostic(`fr1 session over the fr3 sample: sequence ${s.sequence}, ${s.framesProcessed} frames, ${s.surfels} surfels, ${JSON.stringify(s.errors)}`);
+    assert.equal(s.session?.name, 'rgbd_dataset_freiburg1_teddy.slam');
+    assert.equal(s.sequence, null, 'the fr3 sequence is closed');
+    assert.equal(s.framesProcessed, saved.frames);
+    assert.equal(s.surfels, saved.surfels);
+    assert.equal(await page.locator('#play-button').isDisabled(), true, 'nothing to play until a sequence of its camera is opened');
+    assert.match(await page.locator('#sequence-info').textContent(), /open or drop a sequence of its camera/);
+    assert.deepEqual(consoleErrors, []);
+  } finally {
+    await env.close();
+    fs.rmSync(dir, { recursive: true, force: true });
+    fs.rmSync(fr1.parent, { recursive: true, force: true });
+  }
+});
