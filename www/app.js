@@ -70,6 +70,8 @@ const status = {
   sessionSaveBytes: null, // size of the last session saved, bytes
   sessionOpenMs: null, // time of the last Slam.load in the worker (manifest read included), ms
   lastSessionStored: null, // {name, bytes} of the last session kept in IndexedDB by this page (null: none yet)
+  sessionKeepSaveMs: null, // time of Slam.save in the worker for the last session kept on pause or end, ms
+  sessionStoreMs: null, // time of the last IndexedDB write of that session (after the save), ms
   lastSessionOffered: null, // name of the session "Restore last session" offers (null: none)
 };
 window.surfelSlamStatus = status;
@@ -410,7 +412,10 @@ const handlers = {
       return;
     }
     keepLastSession(msg.bytes, msg.name ?? sequence?.name);
-    if (msg.keep) return; // kept for "Restore last session" only
+    if (msg.keep) {
+      status.sessionKeepSaveMs = Number(msg.ms.toFixed(1));
+      return; // kept for "Restore last session" only
+    }
     status.sessionSaveMs = Number(msg.ms.toFixed(1));
     status.sessionSaveBytes = msg.bytes.byteLength;
     console.info(`surfel-slam: session saved in ${status.sessionSaveMs} ms, ${msg.bytes.byteLength} bytes`);
@@ -619,8 +624,12 @@ ui.saveSession.addEventListener('click', () => send({ type: ToWorker.SAVE_SESSIO
 /** The session kept in IndexedDB for "Restore last session" (a refusal only loses the offer). */
 function keepLastSession(bytes, sequenceName) {
   const name = `${(sequenceName || 'surfel-slam').replace(/[^\w.-]+/g, '_')}.slam`;
+  const start = performance.now();
   storeLastSession(bytes, name).then(
-    () => (status.lastSessionStored = { name, bytes: bytes.byteLength }),
+    () => {
+      status.sessionStoreMs = Number((performance.now() - start).toFixed(1));
+      status.lastSessionStored = { name, bytes: bytes.byteLength };
+    },
     (e) => console.warn(`surfel-slam: the last session was not kept in the browser: ${e?.message ?? e}`),
   );
 }
