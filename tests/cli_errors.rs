@@ -431,7 +431,7 @@ fn bad_command_lines_exit_2_naming_the_option() {
 /// file with an extension of no format (as `--option=value`, so that a
 /// value like `-inf` is not read as an option): exit 2, the option named, decided
 /// before any file is read (the dataset path does not exist: reading it
-/// first would exit 1). The README's exit-code table states this rule.
+/// first would exit 1). The exit-code table in docs/cli.md states this rule.
 #[test]
 fn every_numeric_option_and_output_extension_exits_2_before_reading() {
     let tmp = scratch("options");

@@ -1,6 +1,6 @@
 //! `surfel-slam`: run dense RGB-D SLAM over a dataset folder, or evaluate a trajectory.
 //!
-//! Exit codes (the README's table): 0 success; 1 the run could not start or
+//! Exit codes (the table in docs/cli.md): 0 success; 1 the run could not start or
 //! finish (unreadable folder, unknown layout, a setting that does not fit
 //! this data: a focal length implausible for the image size, a principal
 //! point outside it, a depth bound beyond the preset's other bound; the
