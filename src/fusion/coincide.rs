@@ -10,6 +10,8 @@ use super::{FusionConfig, SurfelMap};
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+use std::ops::Range;
 
 /// Largest distance between two surfels taken for one surface, metres.
 pub const COINCIDE_M: f32 = 0.01;
@@ -50,13 +52,27 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
         return 0;
     }
     let cell = |p: Vec3| (p / COINCIDE_M).floor().as_ivec3();
-    let mut grid: HashMap<IVec3, Vec<u32>> = HashMap::with_capacity(young.len());
+    // The young surfels sorted by cell, and each cell's run of them.
+    let mut by_cell: Vec<([i32; 3], u32)> = young
+        .iter()
+        .map(|&j| (cell(positions[j as usize]).to_array(), j))
+        .collect();
+    by_cell.sort_unstable();
+    let mut grid: HashMap<IVec3, Range<usize>, BuildHasherDefault<CellHasher>> =
+        HashMap::with_capacity_and_hasher(by_cell.len(), BuildHasherDefault::default());
+    let mut near_young = CellFilter::new();
+    let mut start = 0;
+    for run in by_cell.chunk_by(|a, b| a.0 == b.0) {
+        let c = IVec3::from_array(run[0].0);
+        grid.insert(c, start..start + run.len());
+        near_young.mark(c);
+        start += run.len();
+    }
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for &j in &young {
         let p = positions[j as usize];
         lo = lo.min(p);
         hi = hi.max(p);
-        grid.entry(cell(p)).or_default().push(j);
     }
     lo -= Vec3::splat(COINCIDE_M);
     hi += Vec3::splat(COINCIDE_M);
@@ -70,6 +86,7 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
                 && confidences[b] >= stable
                 && positions[b].cmpge(lo).all()
                 && positions[b].cmple(hi).all()
+                && near_young.may_hold(cell(positions[b]))
         })
         .flat_map_iter(|b| {
             let p = positions[b];
@@ -81,7 +98,7 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
                         let Some(js) = grid.get(&c.saturating_add(IVec3::new(dx, dy, dz))) else {
                             continue;
                         };
-                        for &j in js {
+                        for &(_, j) in &by_cell[js.clone()] {
                             let d = positions[j as usize].distance(p);
                             if d < COINCIDE_M && normals[j as usize].dot(normals[b]) >= cos_gate {
                                 found.push((j, b as u32, d));
@@ -109,6 +126,89 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
         merged += 1;
     }
     merged
+}
+
+/// Hasher of grid cells: a multiply-rotate over their three coordinates.
+/// std's default (SipHash) made building the grid of ~100 k young cells
+/// and looking cells up the larger part of the cost; no iteration order of
+/// the grid reaches a result (the pairs are sorted).
+#[derive(Default)]
+struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u32(u32::from(b));
+        }
+    }
+
+    fn write_u32(&mut self, x: u32) {
+        self.0 = (self.0.rotate_left(5) ^ u64::from(x)).wrapping_mul(0x517C_C1B7_2722_0A95);
+    }
+
+    fn write_i32(&mut self, x: i32) {
+        self.write_u32(x as u32);
+    }
+
+    fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+/// Bits of [`CellFilter`] (128 KiB, fits a core's cache).
+const FILTER_BITS: usize = 1 << 20;
+
+/// Cells of the filter, per axis: `2^FILTER_SHIFT` grid cells.
+const FILTER_SHIFT: u32 = 2;
+
+/// Which coarse cells (4 x 4 x 4 grid cells) hold a young surfel, as a bit
+/// per hashed coarse cell: a false answer is certain, a true one may be a
+/// collision. Most old surfels are nowhere near a young one, and a few bit
+/// tests spare them the 27 cell look-ups of the grid (those grew with the
+/// map: 150-270 ms a cleanup late in the 500-frame 7-Scenes kitchen,
+/// `docs/performance.md#merge-copies-filter`). Only skips work: the same
+/// pairs are found.
+struct CellFilter {
+    bits: Vec<u64>,
+}
+
+impl CellFilter {
+    fn new() -> Self {
+        Self {
+            bits: vec![0; FILTER_BITS / 64],
+        }
+    }
+
+    /// Bit of coarse cell `c` (a multiplicative hash of its coordinates).
+    fn slot(c: IVec3) -> usize {
+        let h = (c.x as u32).wrapping_mul(0x9E37_79B1)
+            ^ (c.y as u32).wrapping_mul(0x85EB_CA77)
+            ^ (c.z as u32).wrapping_mul(0xC2B2_AE3D);
+        (h.wrapping_mul(0x27D4_EB2F) >> (32 - FILTER_BITS.trailing_zeros())) as usize
+    }
+
+    /// Marks the coarse cell of grid cell `c`.
+    fn mark(&mut self, c: IVec3) {
+        let s = Self::slot(c >> FILTER_SHIFT);
+        self.bits[s / 64] |= 1 << (s % 64);
+    }
+
+    /// False only when no marked grid cell is among the 27 around (and
+    /// including) `c`, neighbours taken as `c.saturating_add(d)` like the
+    /// grid's look-ups: those fall in at most two coarse cells per axis.
+    fn may_hold(&self, c: IVec3) -> bool {
+        let lo = c.saturating_add(IVec3::NEG_ONE) >> FILTER_SHIFT;
+        let hi = c.saturating_add(IVec3::ONE) >> FILTER_SHIFT;
+        (0..8).any(|corner| {
+            let coarse = IVec3::new(
+                if corner & 1 == 0 { lo.x } else { hi.x },
+                if corner & 2 == 0 { lo.y } else { hi.y },
+                if corner & 4 == 0 { lo.z } else { hi.z },
+            );
+            let s = Self::slot(coarse);
+            self.bits[s / 64] & (1 << (s % 64)) != 0
+        })
+    }
 }
 
 #[cfg(test)]
@@ -168,5 +268,46 @@ mod tests {
         };
         let mut never = old_and_copy(Vec3::ZERO, Vec3::Z);
         assert_eq!(merge_copies(&mut never, &off, now), 0);
+    }
+
+    #[test]
+    fn a_copy_across_the_filters_coarse_cells_is_still_found() {
+        let config = FusionConfig::default();
+        let now = due(&config);
+        // 4 cm coarse cells: the old surfel and its copy lie on either side
+        // of a coarse boundary on every axis.
+        let mut map = SurfelMap::default();
+        let old = Vec3::new(0.0395, -0.0005, 1.9995);
+        map.push(old, Vec3::Z, [0; 4], 0.005, 20.0, 0);
+        map.push(
+            Vec3::new(0.0402, 0.0003, 2.0003),
+            Vec3::Z,
+            [0; 4],
+            0.005,
+            20.0,
+            300,
+        );
+        assert_eq!(merge_copies(&mut map, &config, now), 1);
+        assert!(map.confidences()[1] < 0.0, "the copy is absorbed");
+        assert_eq!(map.positions()[0], old);
+    }
+
+    #[test]
+    fn the_cell_filter_holds_every_neighbour_of_a_marked_cell() {
+        let mut filter = CellFilter::new();
+        let marked = [IVec3::new(3, -7, 250), IVec3::new(-1, 0, 0), IVec3::MAX];
+        for &c in &marked {
+            filter.mark(c);
+        }
+        for &c in &marked {
+            for d in (0..27).map(|i| IVec3::new(i % 3 - 1, i / 3 % 3 - 1, i / 9 - 1)) {
+                assert!(filter.may_hold(c.saturating_add(d)), "{c} + {d}");
+            }
+        }
+        // Far from every marked cell, most cells are ruled out.
+        let far = (0..1000)
+            .filter(|&i| filter.may_hold(IVec3::new(1000 + 5 * i, 40, -90)))
+            .count();
+        assert!(far < 10, "{far} of 1000 far cells pass");
     }
 }
