@@ -15,12 +15,11 @@
 //!
 //! Poses are `world_from_camera` in the saved map's world frame, metres.
 
-use super::recovery::{Tracked, RECOVERY_MIN_CONDITIONING};
+use super::recovery::Tracked;
 use super::{FrameReport, Pipeline, StageTimings, Verdict, VerdictCounts};
 use crate::clock::now_ms;
 use crate::frame::RgbdFrame;
 use crate::fusion::{DepthTiles, FusionStats, Measured};
-use crate::loop_closure::relocalise::{Model, Trackers};
 use crate::loop_closure::LoopOutcome;
 use crate::track::verify::TrackingChecks;
 use glam::DAffine3;
@@ -107,12 +106,7 @@ impl Pipeline {
         let t0 = now_ms();
         self.preprocess(frame);
         let t1 = now_ms();
-        let k = self.config.working_intrinsics();
-        let level0 = self.pyramid.levels.first().map_or(&[][..], |l| &l.vertices);
-        let _ = self
-            .sparse
-            .keep_frame(&self.pyramid.rgb, level0, k.width, k.height);
-        let _ = self.relocaliser.encode(&self.pyramid);
+        self.keep_for_sparse_and_ferns();
         let tracked = match loc.last_placed {
             Some(previous) => {
                 let tracked = self.track_or_recover(&previous, loc.velocity, 0);
@@ -169,26 +163,7 @@ impl Pipeline {
     /// whole map (whether or not relocalisation is on for mapping), or
     /// [`Verdict::Unplaced`] with no pose (the identity stands in).
     fn place_in_map(&mut self) -> Tracked {
-        let map = &self.map;
-        let fusion = self.config.fusion;
-        // The map's warm-up is long over: its stable surfels.
-        let fused = self.counts.fused();
-        let found = self.relocaliser.place(
-            &self.pyramid,
-            Model {
-                map,
-                seen: 0..u32::MAX,
-                include: |i| fusion.predicts(map, i, fused),
-                far_m: self.config.depth.max_m,
-            },
-            Trackers {
-                normal: &self.config.tracker,
-                wide: &self.recovery,
-                min_conditioning: RECOVERY_MIN_CONDITIONING,
-            },
-            &mut self.tracker,
-            u32::MAX,
-        );
+        let found = self.place_in_whole_map();
         let Some(found) = found else {
             return Tracked {
                 verdict: Verdict::Unplaced,

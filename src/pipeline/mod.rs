@@ -316,17 +316,7 @@ impl Pipeline {
     /// prediction, with its verdict ([`Pipeline::track_or_recover`]); the
     /// first frame of a map is the world frame.
     fn track(&mut self) -> Tracked {
-        let k = self.config.working_intrinsics();
-        // Kept for the sparse estimate (this frame against the last fused
-        // one): a copy, reduced and searched for corners only when an
-        // estimate is asked for. A frame it cannot use leaves the estimator
-        // without a current frame.
-        let level0 = self.pyramid.levels.first().map_or(&[][..], |l| &l.vertices);
-        let _ = self
-            .sparse
-            .keep_frame(&self.pyramid.rgb, level0, k.width, k.height);
-        // A frame the fern code cannot use is neither looked up nor kept.
-        let _ = self.relocaliser.encode(&self.pyramid);
+        self.keep_for_sparse_and_ferns();
         let tracked = match self.last_good {
             None => Tracked {
                 verdict: Verdict::Initialised,
@@ -339,6 +329,20 @@ impl Pipeline {
             }
         };
         self.relocalise_if_lost(tracked)
+    }
+
+    /// Keeps the pyramid's frame for the sparse estimate (this frame
+    /// against the last fused one: a copy, reduced and searched for corners
+    /// only when an estimate is asked for) and encodes it for the keyframe
+    /// ferns. A frame the estimator cannot use leaves it without a current
+    /// frame; one the fern code cannot use is neither looked up nor kept.
+    fn keep_for_sparse_and_ferns(&mut self) {
+        let k = self.config.working_intrinsics();
+        let level0 = self.pyramid.levels.first().map_or(&[][..], |l| &l.vertices);
+        let _ = self
+            .sparse
+            .keep_frame(&self.pyramid.rgb, level0, k.width, k.height);
+        let _ = self.relocaliser.encode(&self.pyramid);
     }
 
     /// Stage `fuse`: integrates the frame at `pose` into the map, with the

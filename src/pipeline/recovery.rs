@@ -4,7 +4,7 @@
 use super::{Pipeline, Verdict};
 use crate::features::SparseEstimate;
 use crate::fusion::Prediction;
-use crate::loop_closure::relocalise::{Model, Trackers};
+use crate::loop_closure::relocalise::{Model, Relocalisation, Trackers};
 use crate::preprocess::FramePyramid;
 use crate::se3;
 use crate::track::verify::{free_space_violation, TrackingChecks, VerifyConfig};
@@ -392,20 +392,14 @@ impl Judge<'_> {
 }
 
 impl Pipeline {
-    /// A lost frame placed by the keyframes that look like it (see
-    /// [`crate::loop_closure::relocalise`]), against the whole model seen
-    /// from each keyframe rather than only the view from the last good
-    /// pose; reported as [`Verdict::Recovered`] with
-    /// `checks.relocalised_from` set. Other frames pass unchanged.
-    pub(super) fn relocalise_if_lost(&mut self, tracked: Tracked) -> Tracked {
-        if !matches!(tracked.verdict, Verdict::Lost(_)) {
-            return tracked;
-        }
+    /// The frame placed by relocalisation against every keyframe and the
+    /// map's stable surfels, whenever last seen (as the prediction's, the
+    /// warm-up counts fused frames); `None` when no keyframe places it.
+    pub(super) fn place_in_whole_map(&mut self) -> Option<Relocalisation> {
         let map = &self.map;
         let fusion = self.config.fusion;
-        // As the prediction's: the warm-up counts fused frames.
         let fused = self.counts.fused();
-        let found = self.relocaliser.relocalise(
+        self.relocaliser.place(
             &self.pyramid,
             Model {
                 map,
@@ -419,7 +413,23 @@ impl Pipeline {
                 min_conditioning: RECOVERY_MIN_CONDITIONING,
             },
             &mut self.tracker,
-        );
+            u32::MAX,
+        )
+    }
+
+    /// A lost frame placed by the keyframes that look like it (see
+    /// [`crate::loop_closure::relocalise`]), against the whole model seen
+    /// from each keyframe rather than only the view from the last good
+    /// pose; reported as [`Verdict::Recovered`] with
+    /// `checks.relocalised_from` set. Other frames pass unchanged.
+    pub(super) fn relocalise_if_lost(&mut self, tracked: Tracked) -> Tracked {
+        if !matches!(tracked.verdict, Verdict::Lost(_)) {
+            return tracked;
+        }
+        if !self.relocaliser.config().enabled {
+            return tracked;
+        }
+        let found = self.place_in_whole_map();
         let Some(found) = found else {
             return tracked;
         };
