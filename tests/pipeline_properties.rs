@@ -4,7 +4,8 @@
 //! wrong size, 8-bit depth, colour/depth size mismatch, wrong pixel buffer,
 //! NaN or infinite timestamp), reset, a change of configuration (a new
 //! pipeline, as the page and the wasm `Slam` do), PLY export, changed range
-//! and trajectory reads, in any order. The runs are long enough to cross the
+//! and trajectory reads, a session saved and loaded in place (a cut copy
+//! refused first), in any order. The runs are long enough to cross the
 //! periodic cleanups, the spatial sorting and merging of settled surfels,
 //! the compaction of absorbed surfels and the surfel budget, and a reset
 //! after 100+ frames (what panicked in issue 19).
@@ -27,6 +28,7 @@ use std::path::PathBuf;
 use surfel_slam::dataset::{read_frame, Sequence};
 use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::random::SplitMix;
+use surfel_slam::session;
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
 use surfel_slam::track::TrackerMode;
 use surfel_slam::{FrameReport, Intrinsics, Pipeline, PipelineError, RgbdFrame, SlamConfig};
@@ -241,6 +243,7 @@ struct Coverage {
     compactions: usize,
     budget_full: usize,
     exports: usize,
+    sessions: usize,
 }
 
 fn fail(seed: u64, step: usize, what: &str) -> String {
@@ -327,6 +330,41 @@ fn check(slam: &Pipeline, model: &Model, at: &dyn Fn(&str) -> String) {
         }
         None => assert_eq!(frames, 0, "{}", at("frames without a report")),
     }
+}
+
+/// Saves `slam` as a session; a cut copy is refused and changes nothing;
+/// the whole one loads into a pipeline holding the same trajectory and
+/// map, which carries on in place of `slam`.
+fn session_round_trip(slam: &mut Pipeline, at: &dyn Fn(&str) -> String) {
+    let bytes = session::save(slam, Cursor::new(Vec::new()))
+        .map(Cursor::into_inner)
+        .unwrap_or_else(|e| panic!("{}", at(&format!("session not saved: {e}"))));
+    let before = (slam.frames(), slam.map().len(), slam.counts());
+    let cut = session::load_into(slam, Cursor::new(&bytes[..bytes.len() / 2]));
+    assert!(cut.is_err(), "{}", at("a cut session loaded"));
+    let after = (slam.frames(), slam.map().len(), slam.counts());
+    assert_eq!(
+        before,
+        after,
+        "{}",
+        at("a cut session changed the pipeline")
+    );
+    let loaded = session::load(Cursor::new(&bytes))
+        .unwrap_or_else(|e| panic!("{}", at(&format!("session not loaded: {e}"))));
+    assert_eq!(
+        loaded.trajectory(),
+        slam.trajectory(),
+        "{}",
+        at("loaded trajectory")
+    );
+    assert_eq!(
+        loaded.map().positions(),
+        slam.map().positions(),
+        "{}",
+        at("loaded map")
+    );
+    assert_eq!(loaded.counts(), slam.counts(), "{}", at("loaded counts"));
+    *slam = loaded;
 }
 
 /// Runs one case; returns what it crossed.
@@ -539,6 +577,8 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
                 "{}",
                 at("trajectory")
             );
+            session_round_trip(&mut slam, &at);
+            cov.sessions += 1;
         }
         check(&slam, &model, &at);
         cov.steps += 1;
@@ -574,6 +614,7 @@ fn add(total: &mut Coverage, c: Coverage) {
     total.compactions += c.compactions;
     total.budget_full += c.budget_full;
     total.exports += c.exports;
+    total.sessions += c.sessions;
 }
 
 fn odd_frame() -> Garbage {
@@ -615,6 +656,7 @@ fn any_sequence_of_calls_keeps_the_pipeline_consistent_on_synthetic_frames() {
         total.refused > 0 && total.config_changes > 0 && total.exports > 0,
         "{total:?}"
     );
+    assert!(total.sessions > 0, "{total:?}");
 }
 
 #[test]
