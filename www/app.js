@@ -4,7 +4,7 @@
 // Beside this file: camera-settings.js (the settings panel), display-frame.js
 // (how the map and the ground truth are shown), downloads.js (saved files),
 // view-controls.js (the view options and the panel's scroll hint),
-// session-store.js (the last session kept in IndexedDB).
+// last-session.js (the last session kept in the browser and offered back).
 import { Renderer } from './renderer.js';
 import { InputViews } from './views.js';
 import { Stats } from './stats.js';
@@ -17,7 +17,7 @@ import { DisplayFrame, GroundTruthTrack } from './display-frame.js';
 import { downloadMirror, downloadSession, isMeshExport, saveExport } from './downloads.js';
 import { wireViewControls } from './view-controls.js';
 import { MessageBoard } from './messages.js';
-import { loadLastSession, storeLastSession } from './session-store.js';
+import { LastSession } from './last-session.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -127,16 +127,12 @@ function clearMessages() {
   status.warnings = [];
   board.clear();
   // The offer of the last session outlives the run that cleared the rest.
-  if (lastSessionOffer) board.report(...lastSessionOffer);
+  if (lastSession.offer) board.report(...lastSession.offer);
   status.shownErrors = board.texts();
 }
 
-// [text, kind, action] of "Restore last session" while it is offered (see offerLastSession).
-let lastSessionOffer = null;
-$('message-close').addEventListener('click', () => {
-  lastSessionOffer = null;
-  status.lastSessionOffered = null;
-});
+const lastSession = new LastSession(status, board);
+$('message-close').addEventListener('click', () => lastSession.withdraw());
 
 // ---- renderer, views, stats ------------------------------------------------------
 
@@ -411,7 +407,7 @@ const handlers = {
       if (!msg.keep) reportError(`cannot save the session: ${msg.error}`);
       return;
     }
-    keepLastSession(msg.bytes, msg.name ?? sequence?.name);
+    lastSession.keep(msg.bytes, msg.name ?? sequence?.name);
     if (msg.keep) {
       status.sessionKeepSaveMs = Number(msg.ms.toFixed(1));
       return; // kept for "Restore last session" only
@@ -504,7 +500,7 @@ const handlers = {
     // Paused or at the end: the map is kept for "Restore last session".
     // Not while the last one is offered: a sample playing after a reload would replace it.
     // (status.playing: the worker's last word; workerPlaying changes on the click.)
-    if (status.playing && !msg.playing && !msg.failed && msg.surfels > 0 && !lastSessionOffer) send({ type: ToWorker.SAVE_SESSION, keep: true });
+    if (status.playing && !msg.playing && !msg.failed && msg.surfels > 0 && !lastSession.offer) send({ type: ToWorker.SAVE_SESSION, keep: true });
     workerPlaying = msg.playing;
     status.failed = msg.failed === true;
     if (renderer) renderer.throttle = msg.playing;
@@ -621,48 +617,9 @@ $('show-flow').addEventListener('change', (e) => {
 
 ui.saveSession.addEventListener('click', () => send({ type: ToWorker.SAVE_SESSION }));
 
-/** The session kept in IndexedDB for "Restore last session" (a refusal only loses the offer). */
-function keepLastSession(bytes, sequenceName) {
-  const name = `${(sequenceName || 'surfel-slam').replace(/[^\w.-]+/g, '_')}.slam`;
-  const start = performance.now();
-  storeLastSession(bytes, name).then(
-    () => {
-      status.sessionStoreMs = Number((performance.now() - start).toFixed(1));
-      status.lastSessionStored = { name, bytes: bytes.byteLength };
-    },
-    (e) => console.warn(`surfel-slam: the last session was not kept in the browser: ${e?.message ?? e}`),
-  );
-}
-
-/** On opening the page: the session kept last, if any, offered back. */
-async function offerLastSession() {
-  let last = null;
-  try {
-    last = await loadLastSession();
-  } catch (e) {
-    console.warn(`surfel-slam: cannot read the last session kept in the browser: ${e?.message ?? e}`);
-  }
-  if (!last?.bytes) return;
-  const when = new Date(last.savedAt).toLocaleString();
-  status.lastSessionOffered = last.name;
-  lastSessionOffer = [
-    `last session: ${last.name} (${(last.bytes.byteLength / 1e6).toFixed(1)} MB, kept ${when})`,
-    'offer',
-    {
-      label: 'Restore last session',
-      run: () => {
-        lastSessionOffer = null;
-        status.lastSessionOffered = null;
-        status.shownErrors = board.texts();
-        const bytes = last.bytes.buffer.slice(last.bytes.byteOffset, last.bytes.byteOffset + last.bytes.byteLength);
-        send({ type: ToWorker.OPEN_SESSION, name: last.name, bytes, localise: ui.sessionLocalise.checked }, [bytes]);
-      },
-    },
-  ];
-  board.report(...lastSessionOffer);
-  status.shownErrors = board.texts();
-}
-offerLastSession();
+lastSession.offerBack((name, bytes) =>
+  send({ type: ToWorker.OPEN_SESSION, name, bytes, localise: ui.sessionLocalise.checked }, [bytes]),
+);
 ui.sessionInput.addEventListener('change', async () => {
   const file = ui.sessionInput.files?.[0];
   ui.sessionInput.value = ''; // the same file chosen again is a new change
