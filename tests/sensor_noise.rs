@@ -154,30 +154,6 @@ fn far_wall_path(frames: usize) -> Vec<DAffine3> {
         .collect()
 }
 
-/// `frame` with its depth replaced by `noise` applied to `exact` (metres),
-/// dropped beyond `max_m` as decoding would and quantised to 1/5000 m.
-fn noisy_frame(
-    frame: &RgbdFrame,
-    exact: &[f32],
-    k: &surfel_slam::Intrinsics,
-    noise: &StructuredLight,
-    (seed, max_m): (u64, f32),
-) -> RgbdFrame {
-    let mut depth = Vec::new();
-    noise.apply_into(exact, k, seed, &mut depth);
-    for z in &mut depth {
-        *z = if *z > max_m {
-            0.0
-        } else {
-            (*z * 5000.0).round() / 5000.0
-        };
-    }
-    RgbdFrame {
-        depth_m: depth,
-        ..frame.clone()
-    }
-}
-
 #[test]
 fn far_walls_with_structured_light_noise() {
     let k = synthetic::default_intrinsics();
@@ -191,11 +167,10 @@ fn far_walls_with_structured_light_noise() {
     for (i, pose) in world_from_camera.iter().enumerate() {
         let rendered = synthetic::render(&scene, &k, pose, &NoiseModel::none(), i as u64);
         let frame = rendered.to_frame(&config.depth).expect("frame");
-        noisy.push(noisy_frame(
+        noisy.push(noise.measured(
             &frame,
             &rendered.depth_m,
             &k,
-            &noise,
             (i as u64, config.depth.max_m),
         ));
         clean.push(frame);
@@ -262,13 +237,7 @@ fn icl_nuim_with_kinect_noise() {
         };
         let frame = read_frame(&dir, entry, &config.depth).expect("frame decodes");
         let exact = frame.depth_m.clone();
-        frames.push(noisy_frame(
-            &frame,
-            &exact,
-            &k,
-            &noise,
-            (i as u64, config.depth.max_m),
-        ));
+        frames.push(noise.measured(&frame, &exact, &k, (i as u64, config.depth.max_m)));
         truth.push(gt);
     }
     // The preset's own model: what a user gets without choosing one.

@@ -284,16 +284,14 @@ impl Pipeline {
         Ok(report)
     }
 
-    /// On the first frame: whether its depth is clean (the tracker's
-    /// holding reads it), and the configured noise models, or the
-    /// clean-depth one when the configuration has one and the depth is clean.
+    /// On the first frame: the configured noise models, or the clean-depth
+    /// one when the configuration has one and the depth is clean.
     fn choose_noise(&mut self, frame: &RgbdFrame) {
         let (mut tracker, mut fusion) = self.configured_noise;
         let clean = depth_is_clean(&frame.depth_m, frame.width) == Some(true);
         if let (true, Some(model)) = (clean, self.config.clean_depth_noise) {
             (tracker, fusion) = (model, model);
         }
-        self.config.tracker.clean_depth = clean;
         self.config.tracker.noise = tracker;
         self.config.fusion.noise = fusion;
         self.recovery = recovery_tracker(&self.config.tracker);

@@ -88,6 +88,33 @@ impl StructuredLight {
         }
     }
 
+    /// `frame` (intrinsics `k`) as the sensor would deliver it, with depth
+    /// from `exact_depth_m` (metres, the rendering's): this noise (drawn
+    /// from `seed`), dropped beyond `max_m` as decoding drops it, and
+    /// stored in 1/5000 m steps (TUM's depth scale).
+    #[must_use]
+    pub fn measured(
+        &self,
+        frame: &crate::frame::RgbdFrame,
+        exact_depth_m: &[f32],
+        k: &Intrinsics,
+        (seed, max_m): (u64, f32),
+    ) -> crate::frame::RgbdFrame {
+        let mut depth = Vec::new();
+        self.apply_into(exact_depth_m, k, seed, &mut depth);
+        for z in &mut depth {
+            *z = if *z > max_m {
+                0.0
+            } else {
+                (*z * 5000.0).round() / 5000.0
+            };
+        }
+        crate::frame::RgbdFrame {
+            depth_m: depth,
+            ..frame.clone()
+        }
+    }
+
     /// Writes the noisy version of `depth_m` (metres, 0 = none, row-major,
     /// `width * height` of `k`) into `out`, deterministically from `seed`.
     /// A `depth_m` of the wrong length gives an all-zero `out`.

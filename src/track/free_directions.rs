@@ -19,6 +19,22 @@
 //! warm-up a noisy model is sparse, and a cell half covered still
 //! constrains as much as its correspondences).
 //!
+//! Noise still poses as information, on the grid too: under i.i.d. depth
+//! noise the synthetic loop's wall-and-floor views read 4.4-7.8e-4 per
+//! point where clean depth reads 0.9-4e-4, and under structured-light noise
+//! (disparity quantised to 1/8 px, as a Kinect v1 measures; its depth comes
+//! in terraces) they read 2.1-2.5e-3, as much as views that are not
+//! degenerate read under the same noise with the old absolute rule. So the
+//! information a direction gets is taken *above the noise floor*: the
+//! normals' own scatter, estimated from the frame, is what noise alone
+//! would give along any direction ([`noise_floor_of_grid`],
+//! [`FreeDirections::confirmed`]'s full-resolution one).
+//! The grid proposes (its floor counts curvature as noise too, so it holds
+//! generously: on TUM fr3/teddy's rounded bear it proposed 37 of 193
+//! frames), and the full resolution confirms, with a floor from second
+//! differences of the normals, which smooth curvature does not reach
+//! (teddy then holds none).
+//!
 //! Eigenvalues are per correspondence, with rotations expressed as the
 //! displacement they cause [`ROTATION_ARM_M`] from the camera (twist
 //! coordinates `[w, t]` with `w` in metres at 1 m): an eigenvalue is the
@@ -58,8 +74,9 @@ const HOLD_STIFFNESS: f64 = 1e6;
 pub struct FreeDirections {
     directions: [[f64; 6]; 6],
     count: usize,
-    /// Smallest eigenvalue of the coarse geometry's information per point
-    /// (see the module doc); 0 when the frame has too few points.
+    /// Smallest eigenvalue of the coarse geometry's information per point,
+    /// above the grid's noise floor (see the module doc); 0 when the frame
+    /// has too few points.
     pub smallest_eigenvalue: f64,
 }
 
@@ -72,6 +89,8 @@ pub struct GridWorkspace {
     counts: Vec<u32>,
     /// Grid columns and block size (coarsest-level pixels) of `counts`.
     shape: (usize, usize),
+    /// Squared normal differences the noise floors are the median of.
+    differences: Vec<f64>,
 }
 
 /// Full-resolution pixels sampled by the confirmation, every this many
@@ -130,13 +149,14 @@ impl FreeDirections {
         if points < 6.0 || !info.iter().all(|v| v.is_finite()) {
             return Self::default();
         }
+        let floor = noise_floor_of_grid(grid, width);
         let eigen = nalgebra::SymmetricEigen::new(info / points);
         let mut free = Self {
-            smallest_eigenvalue: eigen.eigenvalues.min().max(0.0),
+            smallest_eigenvalue: (eigen.eigenvalues.min() - floor).max(0.0),
             ..Self::default()
         };
         for (i, value) in eigen.eigenvalues.iter().enumerate() {
-            if *value < threshold {
+            if *value - floor < threshold {
                 let v = eigen.eigenvectors.column(i);
                 // The step `x = [w, t]` is held by `u . x = 0` with
                 // `u = [ARM v_w, v_t]`: no component along `v` in `[ARM w, t]`.
@@ -149,18 +169,21 @@ impl FreeDirections {
     }
 
     /// Keeps only the held directions that the full-resolution geometry
-    /// leaves free too; for clean (rendered) depth only, whose
-    /// full-resolution normals are honest.
+    /// leaves free too: whose information per point, above the noise
+    /// floor of the full-resolution normals, is below `threshold`.
     ///
     /// The coarse grid averages small structure away: on ICL-NUIM's clean
     /// renderings it read 3e-4..1e-3 per point on views whose full
-    /// resolution reads 4e-3 or more, and holding them cost 2 mm a frame.
-    /// On noisy depth the full-resolution normals scatter and pose as
-    /// information (the synthetic room with Kinect noise: 0.048 per point
-    /// along a true slide); the scatter could not be told apart from small
-    /// structure there (taking off the mean squared difference from the
-    /// grid's normals takes off the structure too; its median, 0.042,
-    /// misses the heavy tail), so noisy depth keeps the grid's answer.
+    /// resolution reads 4e-3 or more, and holding them cost 2 mm a frame;
+    /// on TUM fr3/teddy (stride 5) it proposed 11-37 frames whose full
+    /// resolution holds 1.2-7.8e-3 above a floor of 1.5e-4. On noisy depth
+    /// the full-resolution normals scatter and pose as information (the
+    /// synthetic room with i.i.d. Kinect-like noise: 0.048 per point along
+    /// a true slide, its floor 0.050; with structured-light noise 0.13,
+    /// floor 0.20). The floor is taken from second differences of the
+    /// normals ([`SECOND_DIFFERENCE_TO_VARIANCE`]), which smooth surfaces
+    /// do not reach (a mean or median squared difference from the grid's
+    /// normals took the structure off too).
     /// Only pixels in grid cells the model covers count, as in
     /// [`Self::of_frame`], whose grid (in `grid`) this reads. `fine` is the
     /// finest pyramid level, `coarsest` the level `of_frame` measured.
@@ -169,7 +192,7 @@ impl FreeDirections {
         mut self,
         (fine, coarsest): (&PyramidLevel, &PyramidLevel),
         threshold: f64,
-        grid: &GridWorkspace,
+        grid: &mut GridWorkspace,
     ) -> Self {
         let (Some(k), Some(kg)) = (fine.intrinsics, coarsest.intrinsics) else {
             return self;
@@ -183,6 +206,11 @@ impl FreeDirections {
             return self;
         }
         let block = (k.width / kg.width).max(1) * factor.max(1);
+        let covered = |row: usize, col: usize| {
+            let cell = (row / block) * grid_width + col / block;
+            grid.counts.get(cell).is_some_and(|&c| c > 0)
+        };
+        let floor = noise_floor_at_full_resolution(fine, &k, covered, &mut grid.differences);
         let mut kept = 0;
         for d in 0..self.count {
             let u = self.directions[d];
@@ -191,8 +219,7 @@ impl FreeDirections {
             let (mut information, mut samples) = (0.0f64, 0usize);
             for row in (0..k.height).step_by(CONFIRM_STEP) {
                 for col in (0..k.width).step_by(CONFIRM_STEP) {
-                    let cell = (row / block) * grid_width + col / block;
-                    if grid.counts.get(cell).is_none_or(|&c| c == 0) {
+                    if !covered(row, col) {
                         continue;
                     }
                     let i = row * k.width + col;
@@ -208,7 +235,7 @@ impl FreeDirections {
                     samples += 1;
                 }
             }
-            if samples < 6 || information / (samples as f64) < threshold {
+            if samples < 6 || information / (samples as f64) - floor < threshold {
                 self.directions[kept] = u;
                 kept += 1;
             }
@@ -254,8 +281,14 @@ impl FreeDirections {
 
 /// Counts into `grid.counts`, per grid cell (`width` columns, `factor`
 /// pixels of level `k` square), the model pixels (every second one each
-/// way) that `camera_from_world` puts in it within `gates` of the cell's
-/// averaged point and normal.
+/// way) with a normal that `camera_from_world` puts in it within `gates`'
+/// distance of the cell's averaged point.
+///
+/// Not within the normal gate of the cell's normal: under quantised depth
+/// the grid's normals follow the terraces and fail a 20 degree gate on
+/// oblique surfaces that ICP, on finer levels, does use (the synthetic
+/// loop under structured-light noise then read 13 views that are not
+/// degenerate as free, and held them).
 fn count_correspondences(
     model: &Prediction,
     mk: &Intrinsics,
@@ -267,7 +300,6 @@ fn count_correspondences(
     grid.counts.clear();
     grid.counts.resize(grid.vertices.len(), 0);
     let height = grid.vertices.len() / width.max(1);
-    let cos_gate = libm::cosf(gates.normal_gate_deg.to_radians());
     for v in (0..mk.height).step_by(2) {
         for u in (0..mk.width).step_by(2) {
             let i = v * mk.width + u;
@@ -291,14 +323,111 @@ fn count_correspondences(
             }
             let g = gv * width + gu;
             let (q, n) = (grid.vertices[g], grid.normals[g]);
-            if n != Vec3::ZERO
-                && (p - q).length() <= gates.distance_gate_m
-                && camera_from_world.vector(normal).dot(n) >= cos_gate
-            {
+            if n != Vec3::ZERO && (p - q).length() <= gates.distance_gate_m {
                 grid.counts[g] += 1;
             }
         }
     }
+}
+
+/// Normal noise of variance `s^2` along each tangent axis makes two
+/// neighbours' normals differ by `|a - b|^2` with mean `4 s^2`, exponentially
+/// distributed (two axes), so with median `4 s^2 ln 2`; `s^2` is what noise
+/// alone adds to the information along any direction.
+const FIRST_DIFFERENCE_TO_VARIANCE: f64 = 1.0 / (4.0 * std::f64::consts::LN_2);
+
+/// As [`FIRST_DIFFERENCE_TO_VARIANCE`] for second differences
+/// `|a - 2 b + c|^2` of three neighbours in a line: mean `12 s^2`.
+const SECOND_DIFFERENCE_TO_VARIANCE: f64 = 1.0 / (12.0 * std::f64::consts::LN_2);
+
+/// Relative depth step between neighbours taken for a silhouette, not a
+/// surface (as `block_average` and the pyramid take it).
+const SAME_SURFACE: f32 = 0.05;
+
+/// The information per point that the grid's normal noise alone gives
+/// along any direction: from the median squared difference between the
+/// normals of 4-neighbouring counted cells on one surface (curvature and
+/// creases count as noise here, which makes the grid hold generously; the
+/// full resolution confirms). Reads `grid.normals`, `vertices` and
+/// `counts`; 0 without neighbours.
+fn noise_floor_of_grid(grid: &mut GridWorkspace, width: usize) -> f64 {
+    let GridWorkspace {
+        vertices,
+        normals,
+        counts,
+        differences,
+        ..
+    } = grid;
+    differences.clear();
+    let height = vertices.len() / width.max(1);
+    let counted = |i: usize| counts[i] > 0 && normals[i] != Vec3::ZERO;
+    for v in 0..height {
+        for u in 0..width {
+            let i = v * width + u;
+            if !counted(i) {
+                continue;
+            }
+            let right = (u + 1 < width).then_some(i + 1);
+            let below = (v + 1 < height).then_some(i + width);
+            for j in [right, below].into_iter().flatten() {
+                if counted(j) && on_one_surface(vertices[i].z, vertices[j].z) {
+                    differences.push(f64::from((normals[i] - normals[j]).length_squared()));
+                }
+            }
+        }
+    }
+    median(differences) * FIRST_DIFFERENCE_TO_VARIANCE
+}
+
+/// The information per point that the normal noise of `fine` (the finest
+/// level, intrinsics `k`) alone gives along any direction: from the median
+/// squared second difference of the normals of pixels [`CONFIRM_STEP`]
+/// apart in rows and columns, around the sampled pixels where `covered`.
+/// 0 without such triples.
+fn noise_floor_at_full_resolution(
+    fine: &PyramidLevel,
+    k: &Intrinsics,
+    covered: impl Fn(usize, usize) -> bool,
+    differences: &mut Vec<f64>,
+) -> f64 {
+    differences.clear();
+    let s = CONFIRM_STEP;
+    let (vertices, normals) = (&fine.vertices, &fine.normals);
+    let measured = |i: usize| vertices[i].z > 0.0 && normals[i] != Vec3::ZERO;
+    for row in (s..k.height.saturating_sub(s)).step_by(s) {
+        for col in (s..k.width.saturating_sub(s)).step_by(s) {
+            let i = row * k.width + col;
+            if !covered(row, col) || !measured(i) {
+                continue;
+            }
+            let z = vertices[i].z;
+            for (a, b) in [(i - s, i + s), (i - s * k.width, i + s * k.width)] {
+                if measured(a)
+                    && measured(b)
+                    && on_one_surface(z, vertices[a].z)
+                    && on_one_surface(z, vertices[b].z)
+                {
+                    let d = normals[a] - 2.0 * normals[i] + normals[b];
+                    differences.push(f64::from(d.length_squared()));
+                }
+            }
+        }
+    }
+    median(differences) * SECOND_DIFFERENCE_TO_VARIANCE
+}
+
+/// Whether depths `a` and `b` (metres) are close enough to be one surface.
+fn on_one_surface(a: f32, b: f32) -> bool {
+    (a - b).abs() <= SAME_SURFACE * a
+}
+
+/// Median of `values` (reordered), 0 when empty.
+fn median(values: &mut [f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let at = values.len() / 2;
+    *values.select_nth_unstable_by(at, f64::total_cmp).1
 }
 
 /// Averages `vertices` (`width` columns) over square blocks so that at most
@@ -454,6 +583,80 @@ mod tests {
         // The floor is in view but not yet in the model: the wall alone.
         let f = free(&[WALL, FLOOR], |_, v| v < 50);
         assert_eq!(f.count(), 3, "{f:?}");
+    }
+
+    /// `level` with every depth scaled by a factor drawn from
+    /// `1 +- sigma` (uniform), as depth noise moves points along their rays.
+    fn with_depth_noise(level: &PyramidLevel, sigma: f32) -> PyramidLevel {
+        let mut random = crate::random::SplitMix::new(7);
+        let mut noisy = level.clone();
+        for p in &mut noisy.vertices {
+            *p *= 1.0 + sigma * (2.0 * random.next_f32() - 1.0);
+        }
+        noisy
+    }
+
+    #[test]
+    fn noise_lifts_the_floor_and_the_slide_stays_held() {
+        let (level, model) = view(&[WALL, FLOOR], |_, _| true);
+        let mut grid = GridWorkspace::default();
+        let at = (&identity(), &GATES);
+        let clean = FreeDirections::of_frame(&level, &model, at, 1e-3, &mut grid);
+        assert!(noise_floor_of_grid(&mut grid, 80) < 1e-9);
+        let noisy_level = with_depth_noise(&level, 0.004);
+        let noisy = FreeDirections::of_frame(&noisy_level, &model, at, 1e-3, &mut grid);
+        let floor = noise_floor_of_grid(&mut grid, 80);
+        assert!(floor > 1e-4, "floor {floor:e}");
+        assert_eq!(
+            (clean.count(), noisy.count()),
+            (1, 1),
+            "{clean:?} {noisy:?}"
+        );
+        assert!(noisy.directions[0][3].abs() > 0.95, "{noisy:?}");
+    }
+
+    #[test]
+    fn the_full_resolution_floor_is_blind_to_smooth_curvature() {
+        // A cylinder's normals turn steadily: first differences see the
+        // turn, second differences do not.
+        let k = Intrinsics::new(150.0, 150.0, 79.5, 59.5, 160, 120);
+        let (radius, axis_z) = (0.5f32, 1.5f32);
+        let mut level = PyramidLevel {
+            intrinsics: Some(k),
+            vertices: vec![Vec3::ZERO; k.pixel_count()],
+            normals: vec![Vec3::ZERO; k.pixel_count()],
+            ..PyramidLevel::default()
+        };
+        for v in 0..k.height {
+            for u in 0..k.width {
+                let ray = k.back_project(u as f32, v as f32, 1.0);
+                // Nearest hit of the ray with the cylinder x^2 + (z - axis_z)^2 = r^2.
+                let (a, b) = (ray.x * ray.x + ray.z * ray.z, -2.0 * axis_z * ray.z);
+                let c = axis_z * axis_z - radius * radius;
+                let disc = b * b - 4.0 * a * c;
+                if disc <= 0.0 {
+                    continue;
+                }
+                let t = (-b - disc.sqrt()) / (2.0 * a);
+                let p = ray * t;
+                let i = v * k.width + u;
+                level.vertices[i] = p;
+                level.normals[i] = Vec3::new(p.x, 0.0, p.z - axis_z).normalize();
+            }
+        }
+        let mut differences = Vec::new();
+        let all = |_: usize, _: usize| true;
+        let floor = noise_floor_at_full_resolution(&level, &k, all, &mut differences);
+        assert!(floor < 1e-6, "smooth: {floor:e}");
+        let noisy = with_depth_noise(&level, 0.004);
+        let mut noisy_normals = vec![Vec3::ZERO; k.pixel_count()];
+        normals_into(&noisy.vertices, k.width, &mut noisy_normals);
+        let noisy = PyramidLevel {
+            normals: noisy_normals,
+            ..noisy
+        };
+        let floor = noise_floor_at_full_resolution(&noisy, &k, all, &mut differences);
+        assert!(floor > 1e-3, "noisy: {floor:e}");
     }
 
     #[test]
