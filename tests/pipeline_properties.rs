@@ -27,6 +27,7 @@ use std::io::Cursor;
 use std::path::PathBuf;
 use surfel_slam::dataset::{read_frame, Sequence};
 use surfel_slam::mesh::write_surfel_ply;
+use surfel_slam::pipeline::VerdictCounts;
 use surfel_slam::random::SplitMix;
 use surfel_slam::session;
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
@@ -244,6 +245,9 @@ struct Coverage {
     budget_full: usize,
     exports: usize,
     sessions: usize,
+    /// Times localise mode was started, and frames pushed in it.
+    localise_starts: usize,
+    localised: usize,
 }
 
 fn fail(seed: u64, step: usize, what: &str) -> String {
@@ -367,6 +371,37 @@ fn session_round_trip(slam: &mut Pipeline, at: &dyn Fn(&str) -> String) {
     *slam = loaded;
 }
 
+/// Frames a case localises before it resets (localise mode lasts until a reset).
+const LOCALISED_BEFORE_RESET: u32 = 25;
+
+/// What mapping built, which localise mode must leave as it is.
+#[derive(Debug, PartialEq)]
+struct Mapped {
+    frames: u32,
+    counts: VerdictCounts,
+    slots: usize,
+    live: usize,
+    /// Bits of every surfel position.
+    positions: Vec<[u32; 3]>,
+}
+
+impl Mapped {
+    fn of(slam: &Pipeline) -> Self {
+        Self {
+            frames: slam.frames(),
+            counts: slam.counts(),
+            slots: slam.map().len(),
+            live: slam.map().live_len(),
+            positions: slam
+                .map()
+                .positions()
+                .iter()
+                .map(|p| p.to_array().map(f32::to_bits))
+                .collect(),
+        }
+    }
+}
+
 /// Runs one case; returns what it crossed.
 /// `first_run` (when not 0): frames before the first reset or change of
 /// configuration may happen, and a reset right then.
@@ -394,6 +429,8 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
     };
     let mut run_target = run_length(&mut rng).max(first_run);
     let mut forced_reset = false;
+    // While localising: the mapping state that must not change.
+    let mut localising: Option<Mapped> = None;
     for step in 0..steps {
         let frames = slam.frames();
         let at = |what: &str| {
@@ -412,6 +449,10 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
         {
             roll = 0;
         }
+        let localised = slam.localisation().map_or(0, |l| l.frames());
+        if localised >= LOCALISED_BEFORE_RESET && roll < 72 {
+            roll = 84;
+        }
         if first_run > 0 && slam.frames() as usize == first_run && !forced_reset {
             roll = 84;
             forced_reset = true;
@@ -423,6 +464,33 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
             cursor += 1;
             clock += 1.0 / 30.0;
             let before = (slam.map().len(), slam.map().absorbed_len());
+            if let Some(mapped) = &localising {
+                let placed_before = slam.localisation().map_or(0, |l| l.frames());
+                let r = slam.push_frame(&e.frame, clock).unwrap_or_else(|err| {
+                    panic!("{}", at(&format!("valid frame refused localising: {err}")))
+                });
+                assert!(
+                    r.pose().is_none_or(|p| p.is_finite()),
+                    "{}",
+                    at("placed pose")
+                );
+                assert_eq!(
+                    slam.localisation().map(|l| l.frames()),
+                    Some(placed_before + 1),
+                    "{}",
+                    at("localised frames")
+                );
+                assert_eq!(
+                    &Mapped::of(&slam),
+                    mapped,
+                    "{}",
+                    at("localising changed the map")
+                );
+                cov.localised += 1;
+                check(&slam, &model, &at);
+                cov.steps += 1;
+                continue;
+            }
             let r = match rng.below(4) {
                 3 => slam.push_raw(e.width, e.height, &e.rgb, &e.depth_raw, clock),
                 0 => slam.push_png(&e.colour_png, &e.depth_png, clock),
@@ -524,10 +592,16 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
                 at("refused frame kept")
             );
             cov.refused += 1;
+        } else if roll < 88 && localising.is_none() && slam.frames() > 0 && rng.chance(0.3) {
+            // At the end of a run: localise in its map for a while, then reset.
+            slam.start_localising();
+            localising = Some(Mapped::of(&slam));
+            cov.localise_starts += 1;
         } else if roll < 88 {
             cov.resets += 1;
             cov.resets_after_100 += usize::from(slam.frames() >= 100);
             slam.reset();
+            localising = None;
             model = Model::default();
             run_target = run_length(&mut rng);
             assert_eq!(
@@ -543,6 +617,7 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
         } else if roll < 90 {
             cov.config_changes += 1;
             slam = Pipeline::new(random_config(pool, &mut rng)).expect("config");
+            localising = None;
             model = Model::default();
             run_target = run_length(&mut rng);
         } else if roll < 94 {
@@ -577,8 +652,17 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
                 "{}",
                 at("trajectory")
             );
-            session_round_trip(&mut slam, &at);
-            cov.sessions += 1;
+            if localising.is_some() {
+                let refused = session::save(&slam, Cursor::new(Vec::new()));
+                assert!(
+                    matches!(refused, Err(session::SessionError::Localising)),
+                    "{}",
+                    at("a localising pipeline saved")
+                );
+            } else {
+                session_round_trip(&mut slam, &at);
+                cov.sessions += 1;
+            }
         }
         check(&slam, &model, &at);
         cov.steps += 1;
@@ -615,6 +699,8 @@ fn add(total: &mut Coverage, c: Coverage) {
     total.budget_full += c.budget_full;
     total.exports += c.exports;
     total.sessions += c.sessions;
+    total.localise_starts += c.localise_starts;
+    total.localised += c.localised;
 }
 
 fn odd_frame() -> Garbage {
@@ -657,6 +743,10 @@ fn any_sequence_of_calls_keeps_the_pipeline_consistent_on_synthetic_frames() {
         "{total:?}"
     );
     assert!(total.sessions > 0, "{total:?}");
+    assert!(
+        total.localise_starts > 0 && total.localised > 0,
+        "{total:?}"
+    );
 }
 
 #[test]
