@@ -21,18 +21,19 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
+#[path = "pipeline_properties/frames.rs"]
+mod frames;
 
-use common::{shared_dataset, synthetic_config};
+use common::synthetic_config;
+use frames::{encode_synthetic, odd_frame, png_8bit, real_pool, synthetic_pool, Garbage, Pool};
 use std::io::Cursor;
-use std::path::PathBuf;
-use surfel_slam::dataset::{read_frame, Sequence};
 use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::pipeline::VerdictCounts;
 use surfel_slam::random::SplitMix;
 use surfel_slam::session;
-use surfel_slam::synthetic::{self, NoiseModel, Scene};
+use surfel_slam::synthetic::{self, NoiseModel};
 use surfel_slam::track::TrackerMode;
-use surfel_slam::{FrameReport, Intrinsics, Pipeline, PipelineError, RgbdFrame, SlamConfig};
+use surfel_slam::{FrameReport, Pipeline, PipelineError, SlamConfig};
 
 /// The crate's seeded generator, with the draws this test needs.
 struct Rng(SplitMix);
@@ -53,151 +54,6 @@ impl Rng {
     fn chance(&mut self, p: f64) -> bool {
         (self.next() >> 11) as f64 / (1u64 << 53) as f64 <= p
     }
-}
-
-/// One valid frame in the three forms the pipeline takes.
-struct Encoded {
-    colour_png: Vec<u8>,
-    depth_png: Vec<u8>,
-    /// The colour decoded (RGB8), for `push_rgba_depth_png` and `push_raw`.
-    rgb: Vec<u8>,
-    /// The raw depth decoded, for `push_raw`.
-    depth_raw: Vec<u16>,
-    width: usize,
-    height: usize,
-    /// The frame decoded, for `push_frame`.
-    frame: RgbdFrame,
-}
-
-/// Where a case's valid frames come from: a synthetic room rendered ahead,
-/// or a real sequence read on demand.
-enum Frames {
-    Synthetic(Vec<Encoded>),
-    Real { dir: PathBuf, sequence: Sequence },
-}
-
-struct Pool {
-    name: &'static str,
-    base: SlamConfig,
-    frames: Frames,
-    /// A small budget that the pool's frames reach within a few dozen frames.
-    small_budget: (usize, usize),
-}
-
-impl Pool {
-    fn len(&self) -> usize {
-        match &self.frames {
-            Frames::Synthetic(f) => f.len(),
-            Frames::Real { sequence, .. } => sequence.frames.len(),
-        }
-    }
-
-    fn frame(&self, i: usize) -> Encoded {
-        match &self.frames {
-            Frames::Synthetic(f) => {
-                let e = &f[i];
-                Encoded {
-                    colour_png: e.colour_png.clone(),
-                    depth_png: e.depth_png.clone(),
-                    rgb: e.rgb.clone(),
-                    depth_raw: e.depth_raw.clone(),
-                    width: e.width,
-                    height: e.height,
-                    frame: e.frame.clone(),
-                }
-            }
-            Frames::Real { dir, sequence } => {
-                let entry = &sequence.frames[i];
-                let colour_png = std::fs::read(dir.join(&entry.colour)).expect("colour file");
-                let depth_png = std::fs::read(dir.join(&entry.depth)).expect("depth file");
-                let rgb = image::load_from_memory(&colour_png)
-                    .expect("colour decodes")
-                    .to_rgb8();
-                let (width, height) = (rgb.width() as usize, rgb.height() as usize);
-                let frame = read_frame(dir, entry, &self.base.depth).expect("frame decodes");
-                let depth_raw = image::load_from_memory(&depth_png)
-                    .expect("depth decodes")
-                    .to_luma16()
-                    .into_raw();
-                Encoded {
-                    colour_png,
-                    depth_png,
-                    rgb: rgb.into_raw(),
-                    depth_raw,
-                    width,
-                    height,
-                    frame,
-                }
-            }
-        }
-    }
-}
-
-fn encode_synthetic(
-    k: &Intrinsics,
-    config: &SlamConfig,
-    pose: usize,
-    noise: &NoiseModel,
-) -> Encoded {
-    let r = synthetic::render(
-        &Scene::room(),
-        k,
-        &synthetic::trajectory_pose(pose),
-        noise,
-        pose as u64,
-    );
-    let (colour_png, depth_png) = r.to_png_bytes().expect("encode");
-    Encoded {
-        frame: r.to_frame(&config.depth).expect("frame"),
-        colour_png,
-        depth_png,
-        width: r.width,
-        height: r.height,
-        rgb: r.rgb,
-        depth_raw: r.depth_raw,
-    }
-}
-
-/// The synthetic room at 160x120 (fast): every third pose of its path for
-/// `n` frames (3-4 cm a frame), so that the map grows past what one frame
-/// adds as new parts of the room come into view; Kinect-like noise.
-fn synthetic_pool(n: usize) -> Pool {
-    let k = synthetic::default_intrinsics().half().half();
-    let base = synthetic_config(k);
-    let noise = NoiseModel::kinect();
-    let frames = (0..n)
-        .map(|i| encode_synthetic(&k, &base, 3 * i, &noise))
-        .collect();
-    Pool {
-        name: "synthetic 160x120",
-        base,
-        frames: Frames::Synthetic(frames),
-        small_budget: (4_000, 20_000),
-    }
-}
-
-fn real_pool(name: &'static str, folder: &str) -> Option<Pool> {
-    let dir = shared_dataset(folder)?;
-    let sequence = Sequence::open(&dir).expect("sequence opens");
-    Some(Pool {
-        name,
-        base: SlamConfig::from_preset(sequence.preset),
-        frames: Frames::Real { dir, sequence },
-        small_budget: (60_000, 150_000),
-    })
-}
-
-/// A frame no pool uses (96x72) and an 8-bit depth PNG of a pool's size.
-struct Garbage {
-    odd: Encoded,
-}
-
-fn png_8bit(width: usize, height: usize) -> Vec<u8> {
-    let grey = image::GrayImage::from_pixel(width as u32, height as u32, image::Luma([100]));
-    let mut out = Cursor::new(Vec::new());
-    grey.write_to(&mut out, image::ImageFormat::Png)
-        .expect("encode");
-    out.into_inner()
 }
 
 /// A random configuration of `pool`'s camera: tracker, resolution, budget.
@@ -701,14 +557,6 @@ fn add(total: &mut Coverage, c: Coverage) {
     total.sessions += c.sessions;
     total.localise_starts += c.localise_starts;
     total.localised += c.localised;
-}
-
-fn odd_frame() -> Garbage {
-    let k = Intrinsics::new(78.75, 78.75, 47.5, 35.5, 96, 72);
-    let config = synthetic_config(k);
-    Garbage {
-        odd: encode_synthetic(&k, &config, 0, &NoiseModel::none()),
-    }
 }
 
 #[test]
