@@ -33,6 +33,7 @@ const status = {
   loopClosures: null, // loop closures so far (null: the module reports none)
   trajectoryReplaced: 0, // times a loop closure's whole trajectory replaced the drawn one
   surfels: 0,
+  splatsDrawn: 0, // splats in the map view's last draw (bounded while SLAM runs: ?splats=N, 0 = all)
   threads: 0,
   crossOriginIsolated: self.crossOriginIsolated === true,
   module: null,
@@ -139,6 +140,8 @@ $('message-close').addEventListener('click', () => lastSession.withdraw());
 let renderer = null;
 try {
   renderer = new Renderer($('map-canvas'));
+  const splats = new URLSearchParams(location.search).get('splats');
+  if (splats !== null && Number.isFinite(Number(splats))) renderer.splatBudget = Math.max(0, Number(splats));
 } catch (e) {
   reportError(`cannot draw the map: ${e.message}`);
 }
@@ -186,6 +189,7 @@ function syncStatus() {
   status.workerMedianMs = stats.workerMedians();
   status.frameIndex = stats.frameIndex;
   status.changedSurfels = stats.changed ?? 0;
+  status.splatsDrawn = renderer?.splatsDrawn ?? 0;
 }
 
 function noteColourDecoder(msg) {

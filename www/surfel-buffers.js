@@ -51,6 +51,7 @@ export class SurfelBuffers {
     });
     gl.bindVertexArray(null);
     this.capacity = capacity;
+    this.stride = 1;
   }
 
   /**
@@ -104,6 +105,27 @@ export class SurfelBuffers {
       b.n++;
     }
     this.bounds = b;
+  }
+
+  /**
+   * Points the vertex attributes at every `stride`-th surfel (1: all), for
+   * a draw of `ceil(count / stride)` splats; the map's surfels are stored
+   * in spatial blocks, so every stride-th one still covers the whole map.
+   * Returns how many splats to draw.
+   */
+  bindEveryNth(stride) {
+    const gl = this.gl;
+    const n = Math.max(1, Math.floor(stride));
+    gl.bindVertexArray(this.vao);
+    if (n !== this.stride) {
+      ATTRIBUTES.forEach(([name, components, type, bytes, normalised], location) => {
+        gl.bindBuffer(gl.ARRAY_BUFFER, this.buffers[name]);
+        gl.vertexAttribPointer(location, components, gl[type], normalised, n === 1 ? 0 : n * components * bytes, 0);
+      });
+      gl.bindBuffer(gl.ARRAY_BUFFER, null);
+      this.stride = n;
+    }
+    return Math.ceil(this.count / n);
   }
 
   clear() {
