@@ -98,6 +98,25 @@ export async function openPage(env, pathAndQuery = '/') {
   return { page, requests, consoleErrors };
 }
 
+/**
+ * A page of the server's origin showing only `body` (HTML), for tests of
+ * one module of www/ on its own: `await import('/renderer.js')` resolves.
+ * Console errors and page errors are collected in `errors`.
+ */
+export async function openModulePage(env, body = '') {
+  const page = await env.context.newPage();
+  // The bare document has no icon link, so Chromium asks for /favicon.ico.
+  await page.route('**/favicon.ico', (route) => route.fulfill({ status: 204 }));
+  const errors = [];
+  page.on('pageerror', (e) => errors.push(`pageerror: ${e.message}`));
+  page.on('console', (m) => {
+    if (m.type() === 'error') errors.push(m.text());
+  });
+  await page.goto(new URL('/protocol.js', env.server.url).href);
+  await page.setContent(`<!doctype html><body>${body}</body>`);
+  return { page, errors };
+}
+
 /** Requests that left the page's own origin (blob:/data: are local). */
 export function foreignRequests(requests, origin) {
   return [...new Set(requests)].filter((u) => {

@@ -5,18 +5,13 @@
 // pixels read back.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { startBrowser, skipUnlessReady } from './helpers.mjs';
+import { startBrowser, skipUnlessReady, openModulePage } from './helpers.mjs';
 
 test('relocalised frames, loop closures and the loop stage time reach the panel and the verdict strip', { timeout: 120_000 }, async (t) => {
   if (skipUnlessReady(t)) return;
   const env = await startBrowser();
   try {
-    const page = await env.context.newPage();
-    await page.route('**/favicon.ico', (route) => route.fulfill({ status: 204 }));
-    const errors = [];
-    page.on('pageerror', (e) => errors.push(`pageerror: ${e.message}`));
-    await page.goto(new URL('/stats.js', env.server.url).href);
-    await page.setContent('<!doctype html><body><table id="stats"></table><canvas id="error" style="width:200px;height:80px"></canvas></body>');
+    const { page, errors } = await openModulePage(env, '<table id="stats"></table><canvas id="error" style="width:200px;height:80px"></canvas>');
     const r = await page.evaluate(async () => {
       const { Stats } = await import('/stats.js');
       const { Plots, VERDICT_COLOURS } = await import('/plots.js');

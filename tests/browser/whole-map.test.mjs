@@ -6,7 +6,7 @@
 // the renderer's buffers read back from the GPU.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { startBrowser, skipUnlessReady } from './helpers.mjs';
+import { startBrowser, skipUnlessReady, openModulePage } from './helpers.mjs';
 
 /** Runs in the page: frames of the sample, then a reset and one frame again; returns what the checks need. */
 async function replayOverOldMap() {
@@ -124,15 +124,7 @@ test('a change over the whole map replaces the older, larger map on the GPU and 
   if (skipUnlessReady(t)) return;
   const env = await startBrowser();
   try {
-    const page = await env.context.newPage();
-    await page.route('**/favicon.ico', (route) => route.fulfill({ status: 204 }));
-    const errors = [];
-    page.on('pageerror', (e) => errors.push(`pageerror: ${e.message}`));
-    page.on('console', (m) => {
-      if (m.type() === 'error') errors.push(m.text());
-    });
-    await page.goto(new URL('/renderer.js', env.server.url).href);
-    await page.setContent('<!doctype html><body></body>');
+    const { page, errors } = await openModulePage(env);
     const r = await page.evaluate(replayOverOldMap);
     assert.ok(r.before.count > r.n, `the old map (${r.before.count} surfels) is larger than the new one (${r.n})`);
     assert.ok(r.wholeRange.covers && r.wholeRange.start === 0 && r.wholeRange.end === r.n, `changed range after reset: ${JSON.stringify(r.wholeRange)}`);
@@ -153,10 +145,7 @@ test('a trajectory replaced after a loop closure keeps growing from the new path
   if (skipUnlessReady(t)) return;
   const env = await startBrowser();
   try {
-    const page = await env.context.newPage();
-    await page.route('**/favicon.ico', (route) => route.fulfill({ status: 204 }));
-    await page.goto(new URL('/renderer.js', env.server.url).href);
-    await page.setContent('<!doctype html><body></body>');
+    const { page } = await openModulePage(env);
     const r = await page.evaluate(async () => {
       const { Renderer } = await import('/renderer.js');
       const { MapMirror } = await import('/map-mirror.js');
