@@ -14,6 +14,7 @@ import os from 'node:os';
 import path from 'node:path';
 import zlib from 'node:zlib';
 import { REPO, startBrowser, openPage, waitForStatus, getStatus, skipUnlessReady, makeTumClip } from './helpers.mjs';
+import { zipBytes } from '../node/datasets.mjs';
 
 const SAVE_AFTER = 15; // frames of the 44-frame sample before saving
 
@@ -30,35 +31,6 @@ function firstZipEntry(zip) {
   const start = 30 + nameLength + zip.readUInt16LE(28);
   const data = zip.subarray(start, start + size);
   return { name: zip.subarray(30, 30 + nameLength).toString('utf8'), bytes: method === 8 ? zlib.inflateRawSync(data) : data };
-}
-
-/** A zip holding one stored file. */
-function zipOf(name, bytes) {
-  const nameBytes = Buffer.from(name, 'utf8');
-  const crc = zlib.crc32(bytes);
-  const local = Buffer.alloc(30);
-  local.writeUInt32LE(0x04034b50, 0);
-  local.writeUInt16LE(20, 4);
-  local.writeUInt32LE(crc, 14);
-  local.writeUInt32LE(bytes.length, 18);
-  local.writeUInt32LE(bytes.length, 22);
-  local.writeUInt16LE(nameBytes.length, 26);
-  const central = Buffer.alloc(46);
-  central.writeUInt32LE(0x02014b50, 0);
-  central.writeUInt16LE(20, 4);
-  central.writeUInt16LE(20, 6);
-  central.writeUInt32LE(crc, 16);
-  central.writeUInt32LE(bytes.length, 20);
-  central.writeUInt32LE(bytes.length, 24);
-  central.writeUInt16LE(nameBytes.length, 28);
-  const centralOffset = local.length + nameBytes.length + bytes.length;
-  const end = Buffer.alloc(22);
-  end.writeUInt32LE(0x06054b50, 0);
-  end.writeUInt16LE(1, 8);
-  end.writeUInt16LE(1, 10);
-  end.writeUInt32LE(central.length + nameBytes.length, 12);
-  end.writeUInt32LE(centralOffset, 16);
-  return Buffer.concat([local, nameBytes, bytes, central, nameBytes, end]);
 }
 
 /** Chooses `file` in the Open session input and waits for the page's answer (opened or refused). */
@@ -131,7 +103,7 @@ test('Save session, reload, Open session restores the map; bad files are refused
     assert.equal(manifestEntry.name, 'manifest.json');
     const manifest = JSON.parse(manifestEntry.bytes.toString('utf8'));
     const future = path.join(dir, 'future.slam');
-    fs.writeFileSync(future, zipOf('manifest.json', Buffer.from(JSON.stringify({ ...manifest, version: manifest.version + 1 }))));
+    fs.writeFileSync(future, zipBytes([['manifest.json', Buffer.from(JSON.stringify({ ...manifest, version: manifest.version + 1 }))]]));
     for (const [file, kind] of [
       [truncated, 'truncated'],
       [corrupt, 'corrupt'],

@@ -170,6 +170,24 @@ pub struct RawFrame {
     pub depth: Vec<u16>,
 }
 
+impl RawFrame {
+    /// A rendered synthetic frame as the page hands frames to the module
+    /// (RGBA, raw depth), at `timestamp` seconds.
+    fn of_rendered(timestamp: f64, frame: synthetic::RenderedFrame) -> Self {
+        Self {
+            timestamp,
+            width: frame.width,
+            height: frame.height,
+            rgba: frame
+                .rgb
+                .chunks_exact(3)
+                .flat_map(|p| [p[0], p[1], p[2], 255])
+                .collect(),
+            depth: frame.depth_raw,
+        }
+    }
+}
+
 /// The synthetic sequence (`surfel_slam::synthetic`: the room, its known
 /// trajectory, no noise (exact depth quantised to 1/5000 m), 320x240):
 /// config, frames, ground truth (`world_from_camera`).
@@ -191,18 +209,7 @@ pub fn synthetic_sequence() -> (SlamConfig, Vec<RawFrame>, Vec<(f64, DAffine3)>)
     for (i, pose) in synthetic::trajectory(SYNTHETIC_FRAMES).iter().enumerate() {
         let timestamp = i as f64 / 30.0;
         let frame = synthetic::render(&scene, &intrinsics, pose, &noise, i as u64);
-        let rgba = frame
-            .rgb
-            .chunks_exact(3)
-            .flat_map(|p| [p[0], p[1], p[2], 255])
-            .collect();
-        frames.push(RawFrame {
-            timestamp,
-            width: frame.width,
-            height: frame.height,
-            rgba,
-            depth: frame.depth_raw,
-        });
+        frames.push(RawFrame::of_rendered(timestamp, frame));
         ground_truth.push((timestamp, *pose));
     }
     (config, frames, ground_truth)
@@ -236,18 +243,7 @@ pub fn window_sequence() -> (SlamConfig, Vec<RawFrame>, Vec<(f64, DAffine3)>) {
         let timestamp = i as f64 / 30.0;
         let pose = synthetic::loop_pose(j, 240);
         let frame = synthetic::render(&scene, &intrinsics, &pose, &noise, i as u64);
-        let rgba = frame
-            .rgb
-            .chunks_exact(3)
-            .flat_map(|p| [p[0], p[1], p[2], 255])
-            .collect();
-        frames.push(RawFrame {
-            timestamp,
-            width: frame.width,
-            height: frame.height,
-            rgba,
-            depth: frame.depth_raw,
-        });
+        frames.push(RawFrame::of_rendered(timestamp, frame));
         ground_truth.push((timestamp, origin * pose));
     }
     (config, frames, ground_truth)
