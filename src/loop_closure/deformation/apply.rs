@@ -129,36 +129,125 @@ impl DeformationGraph {
     }
 
     /// A camera pose (`world_from_camera`, metres) of frame `time`, moved
-    /// with the surfaces seen then: its centre as a point, its orientation
-    /// by the weighted node rotations (projected to the nearest rotation).
-    /// Non-finite poses and identity graphs return `world_from_camera`.
+    /// as the surfaces it saw: the nodes of its time (the candidates of
+    /// `time`) that lie in its view are moved as the surfels they were
+    /// sampled from, and the pose takes the rigid motion that fits theirs
+    /// best. The camera centre lies metres from those surfaces; moved as a
+    /// point by the nodes nearest to it, a node's small rotation about its
+    /// own surface would swing the centre by the lever arm. With fewer than
+    /// three nodes in view, or all on a line, the centre is moved as a point
+    /// and the orientation by the blended node rotations. Non-finite poses
+    /// and identity graphs return `world_from_camera`.
     #[must_use]
     pub fn apply_to_pose(&self, world_from_camera: &DAffine3, time: u32) -> DAffine3 {
-        let centre = world_from_camera.translation;
-        if self.is_empty() || self.is_identity() || !centre.is_finite() {
+        if self.is_empty() || self.is_identity() || !world_from_camera.is_finite() {
             return *world_from_camera;
         }
-        let c32 = centre.as_vec3();
-        let inf = self.influence(c32, time);
-        let mut dp = DVec3::ZERO;
-        let mut blend = DMat3::ZERO;
-        for i in 0..inf.count {
-            let j = inf.nodes[i] as usize;
-            let w = f64::from(inf.weights[i]);
-            let g = self.nodes[j].position.as_dvec3();
-            let r = self.corrections.rotation[j];
-            dp += w * ((r - DMat3::IDENTITY) * (centre - g) + self.corrections.translation[j]);
-            blend += r * w;
-        }
-        let rotation = nearest_rotation(&blend);
-        let moved =
-            DAffine3::from_mat3_translation(rotation * world_from_camera.matrix3, centre + dp);
+        let moved = match self.seen_motion(world_from_camera, time) {
+            Some(motion) => motion * *world_from_camera,
+            None => self.centre_motion(world_from_camera, time),
+        };
         if moved.is_finite() {
             moved
         } else {
             *world_from_camera
         }
     }
+
+    /// The rigid motion of the nodes of `time` in the view of
+    /// `world_from_camera`, when at least three not on a line are.
+    fn seen_motion(&self, world_from_camera: &DAffine3, time: u32) -> Option<DAffine3> {
+        let camera_from_world = world_from_camera.inverse();
+        let (lo, hi) = self.candidates(time);
+        let mut before = Vec::with_capacity(hi - lo);
+        let mut after = Vec::with_capacity(hi - lo);
+        for node in &self.nodes[lo..hi] {
+            let g = node.position.as_dvec3();
+            let c = camera_from_world.transform_point3(g);
+            let in_view = c.z > MIN_VIEW_DEPTH_M
+                && c.x.abs() <= VIEW_HALF_WIDTH * c.z
+                && c.y.abs() <= VIEW_HALF_WIDTH * c.z;
+            if in_view {
+                before.push(g);
+                after.push(g + self.displacement(g, node.time));
+            }
+        }
+        if before.len() < 3 || !spread_in_a_plane(&before) {
+            return None;
+        }
+        Some(rigid_fit(&before, &after))
+    }
+
+    /// The pose moved as ElasticFusion moves it: its centre as a point,
+    /// its orientation by the weighted node rotations (projected to the
+    /// nearest rotation).
+    fn centre_motion(&self, world_from_camera: &DAffine3, time: u32) -> DAffine3 {
+        let centre = world_from_camera.translation;
+        let inf = self.influence(centre.as_vec3(), time);
+        let mut blend = DMat3::ZERO;
+        for i in 0..inf.count {
+            let j = inf.nodes[i] as usize;
+            blend += self.corrections.rotation[j] * f64::from(inf.weights[i]);
+        }
+        let rotation = nearest_rotation(&blend);
+        DAffine3::from_mat3_translation(
+            rotation * world_from_camera.matrix3,
+            centre + self.displacement(centre, time),
+        )
+    }
+
+    /// How far the graph moves point `p` (world frame, metres) observed at
+    /// frame `time`, in `f64`.
+    fn displacement(&self, p: DVec3, time: u32) -> DVec3 {
+        let inf = self.influence(p.as_vec3(), time);
+        let mut dp = DVec3::ZERO;
+        for i in 0..inf.count {
+            let j = inf.nodes[i] as usize;
+            let w = f64::from(inf.weights[i]);
+            let g = self.nodes[j].position.as_dvec3();
+            let r = self.corrections.rotation[j];
+            dp += w * ((r - DMat3::IDENTITY) * (p - g) + self.corrections.translation[j]);
+        }
+        dp
+    }
+}
+
+/// Nearest a node in view may be, metres.
+const MIN_VIEW_DEPTH_M: f64 = 0.1;
+
+/// `|x| / z` and `|y| / z` at most of a node in view: a little wider than a
+/// Kinect's field of view (0.55 and 0.41), since the pose is not exact.
+const VIEW_HALF_WIDTH: f64 = 0.7;
+
+/// Whether `points` span two dimensions (not all near one line): the second
+/// largest spread is at least a tenth of the largest.
+fn spread_in_a_plane(points: &[DVec3]) -> bool {
+    let n = points.len().max(1) as f64;
+    let mean = points.iter().copied().sum::<DVec3>() / n;
+    let mut cov = DMat3::ZERO;
+    for p in points {
+        let d = *p - mean;
+        cov += DMat3::from_cols(d * d.x, d * d.y, d * d.z);
+    }
+    let a = nalgebra::Matrix3::from_fn(|r, c| cov.col(c)[r]);
+    let mut values: Vec<f64> = a.symmetric_eigenvalues().iter().copied().collect();
+    values.sort_by(|x, y| y.total_cmp(x));
+    values[0] > 0.0 && values[1] >= 0.01 * values[0]
+}
+
+/// The rigid motion carrying the points `from` onto `to` best (least
+/// squares, Kabsch).
+fn rigid_fit(from: &[DVec3], to: &[DVec3]) -> DAffine3 {
+    let n = from.len().max(1) as f64;
+    let a_mean = from.iter().copied().sum::<DVec3>() / n;
+    let b_mean = to.iter().copied().sum::<DVec3>() / n;
+    let mut cross = DMat3::ZERO;
+    for (a, b) in from.iter().zip(to) {
+        let (a, b) = (*a - a_mean, *b - b_mean);
+        cross += DMat3::from_cols(b * a.x, b * a.y, b * a.z);
+    }
+    let rotation = nearest_rotation(&cross);
+    DAffine3::from_mat3_translation(rotation, b_mean - rotation * a_mean)
 }
 
 /// The rotation nearest to `m` (polar decomposition by SVD, reflections
