@@ -16,6 +16,7 @@ use super::depth_tiles::DepthTiles;
 use super::frustum::visible_blocks;
 use super::index_map::raise_to;
 use super::noise_weights::noise_weights_into;
+use super::prefetch::prefetch;
 use super::surfel_map::{ChunkMut, Surfel};
 use super::{FusionConfig, SurfelMap};
 use crate::camera::project_to_pixels_into;
@@ -99,6 +100,22 @@ impl ChunkUpdate {
         self.max = [Vec3::splat(f32::NEG_INFINITY); BLOCKS_PER_CHUNK];
         self.losers.clear();
     }
+}
+
+/// How many surfels (or adds) ahead the per-surfel loops hint the caches
+/// to fetch the measurement at a surfel's pixel: the random reads of
+/// association and merging waited on memory for most of their time
+/// (`docs/performance.md#prefetch`).
+const AHEAD: usize = 16;
+
+/// Hints the caches to fetch what merging or adding pixel `i` reads: its
+/// winner, vertex, normal, colour and noise weight.
+fn prefetch_measurement(best: &[AtomicU64], view: &FrameView<'_>, weight_noise: &[f32], i: usize) {
+    prefetch(best, i);
+    prefetch(&view.level0.vertices, i);
+    prefetch(&view.level0.normals, i);
+    prefetch(view.rgb, 3 * i);
+    prefetch(weight_noise, i);
 }
 
 /// Marks a surfel that is no pixel's candidate this frame.
@@ -240,6 +257,15 @@ impl Integrator {
                         &mut pixels[local],
                     );
                     for j in range.clone() {
+                        // The measurement at a surfel's pixel is a random
+                        // read; the pixels ahead are known, so start them.
+                        let ahead = pixels.get(j - c * CHUNK + AHEAD).copied();
+                        if let Some(a) = ahead.filter(|&a| a != NO_PIXEL) {
+                            let a = a as usize;
+                            prefetch(&level0.vertices, a);
+                            prefetch(&level0.normals, a);
+                            prefetch(best, a);
+                        }
                         let slot = &mut pixels[j - c * CHUNK];
                         if *slot == NO_PIXEL {
                             continue;
@@ -308,12 +334,17 @@ impl Integrator {
             config,
         );
         let (best, pixels, visible) = (&self.best, &self.pixels, &self.visible);
+        let weight_noise = &self.weight_noise;
         map.for_each_chunk_mut(&mut self.chunks, |mut chunk, update| {
             if !update.visible {
                 return;
             }
             let c = chunk.first / CHUNK;
             for j in ChunkBounds::in_chunk(visible, c).iter().cloned().flatten() {
+                // As in `associate`: the pixel's reads started early.
+                if let Some(a) = pixels.get(j + AHEAD).copied().filter(|&a| a != NO_PIXEL) {
+                    prefetch_measurement(best, view, weight_noise, a as usize);
+                }
                 let local = j - chunk.first;
                 let pixel = pixels[j];
                 if pixel == NO_PIXEL {
@@ -386,9 +417,10 @@ impl Integrator {
                 let mut covered = 0;
                 for u in 0..w {
                     let i = v * w + u;
-                    if level0.vertices[i].z <= 0.0
+                    // The winner first: a pixel with one is skipped unread.
+                    if best[i].load(Ordering::Relaxed) != 0
+                        || level0.vertices[i].z <= 0.0
                         || level0.normals[i] == Vec3::ZERO
-                        || best[i].load(Ordering::Relaxed) != 0
                     {
                         continue;
                     }
@@ -414,7 +446,11 @@ impl Integrator {
             })
             .sum();
         // Appended in pixel order: the same map on any thread count.
+        let mut ahead = self.adds.iter().flatten().skip(AHEAD);
         for &i in self.adds.iter().flatten() {
+            if let Some(&a) = ahead.next() {
+                prefetch_measurement(best, view, &self.weight_noise, a as usize);
+            }
             if map.len() >= config.max_surfels {
                 stats.skipped += 1;
                 continue;
