@@ -154,6 +154,25 @@ fn bending_the_end_of_a_strip_moves_it_onto_the_truth_and_keeps_the_start() {
     assert!(worst_strain < 0.03, "strain {worst_strain}");
 }
 
+/// The strip's graph, optimised for the known correction of its end.
+fn bent_graph(s: &Strip) -> DeformationGraph {
+    let mut graph =
+        DeformationGraph::from_samples(&s.positions, &s.times, DeformConfig::default()).unwrap();
+    graph.optimise(&closure(s, &correction())).unwrap();
+    graph
+}
+
+/// A camera `distance` metres inside the circle, looking at the middle of
+/// the strip's cross-section of frame `time` (`world_from_camera`).
+fn camera_facing(s: &Strip, time: u32, distance: f64) -> DAffine3 {
+    let i = time as usize * WIDTH + WIDTH / 2;
+    let p = s.positions[i].as_dvec3();
+    let eye = p + distance * s.normals[i].as_dvec3();
+    let z = (p - eye).normalize();
+    let x = DVec3::Y.cross(z).normalize();
+    DAffine3::from_cols(x, z.cross(x), z, eye)
+}
+
 /// Issue #32, item 3: a past pose moves as the surfaces it saw. Cameras
 /// at 0.8 and 2 m look at the strip where it bends (between the pins and
 /// the corrected end); after the bend, each point of the strip they see
@@ -162,21 +181,13 @@ fn bending_the_end_of_a_strip_moves_it_onto_the_truth_and_keeps_the_start() {
 #[test]
 fn a_bent_pose_still_sees_its_surfaces_where_it_saw_them() {
     let s = strip();
-    let t = correction();
-    let mut graph =
-        DeformationGraph::from_samples(&s.positions, &s.times, DeformConfig::default()).unwrap();
-    graph.optimise(&closure(&s, &t)).unwrap();
+    let graph = bent_graph(&s);
     let mut bent = s.positions.clone();
     graph.apply_to_points(&mut bent, &mut [], &s.times).unwrap();
     let mut worst = 0.0f64;
     for distance in [0.8, 2.0] {
         for time in [150u32, 200, 250, 280] {
-            let centre = time as usize * WIDTH + WIDTH / 2;
-            let p = s.positions[centre].as_dvec3();
-            let eye = p + distance * s.normals[centre].as_dvec3();
-            let z = (p - eye).normalize();
-            let x = DVec3::Y.cross(z).normalize();
-            let pose = DAffine3::from_cols(x, z.cross(x), z, eye);
+            let pose = camera_facing(&s, time, distance);
             let moved_pose = graph.apply_to_pose(&pose, time);
             // The cross-sections seen from this camera (its time and the
             // ten either side), across the strip's width.
@@ -210,18 +221,8 @@ fn a_bent_pose_still_sees_its_surfaces_where_it_saw_them() {
 fn poses_move_with_the_surfaces_seen_at_their_time() {
     let s = strip();
     let t = correction();
-    let mut graph =
-        DeformationGraph::from_samples(&s.positions, &s.times, DeformConfig::default()).unwrap();
-    graph.optimise(&closure(&s, &t)).unwrap();
-    // A camera 0.8 m inside the circle looking at the point of frame `time`.
-    let pose_at = |time: u32| {
-        let i = time as usize * WIDTH + WIDTH / 2;
-        let p = s.positions[i].as_dvec3();
-        let eye = p + 0.8 * s.normals[i].as_dvec3();
-        let z = (p - eye).normalize();
-        let x = DVec3::Y.cross(z).normalize();
-        DAffine3::from_cols(x, z.cross(x), z, eye)
-    };
+    let graph = bent_graph(&s);
+    let pose_at = |time: u32| camera_facing(&s, time, 0.8);
     for time in [305, ALONG as u32 - 1] {
         let pose = pose_at(time);
         let got = graph.apply_to_pose(&pose, time);
