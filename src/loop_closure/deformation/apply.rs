@@ -7,6 +7,7 @@ use glam::{DAffine3, DMat3, DVec3, Mat3, Vec3};
 use rayon::prelude::*;
 
 use super::{DeformError, DeformationGraph};
+use crate::features::rigid::fit_rigid;
 
 /// The `f32` form of the corrections used to move many points: `R - I`,
 /// `R⁻ᵀ - I` (normals) and `t`, so the identity moves nothing exactly.
@@ -175,7 +176,8 @@ impl DeformationGraph {
         if before.len() < 3 || !spread_in_a_plane(&before) {
             return None;
         }
-        Some(rigid_fit(&before, &after))
+        // `after ~ motion * before`.
+        fit_rigid(after.iter().copied().zip(before.iter().copied()))
     }
 
     /// The pose moved as ElasticFusion moves it: its centre as a point,
@@ -233,21 +235,6 @@ fn spread_in_a_plane(points: &[DVec3]) -> bool {
     let mut values: Vec<f64> = a.symmetric_eigenvalues().iter().copied().collect();
     values.sort_by(|x, y| y.total_cmp(x));
     values[0] > 0.0 && values[1] >= 0.01 * values[0]
-}
-
-/// The rigid motion carrying the points `from` onto `to` best (least
-/// squares, Kabsch).
-fn rigid_fit(from: &[DVec3], to: &[DVec3]) -> DAffine3 {
-    let n = from.len().max(1) as f64;
-    let a_mean = from.iter().copied().sum::<DVec3>() / n;
-    let b_mean = to.iter().copied().sum::<DVec3>() / n;
-    let mut cross = DMat3::ZERO;
-    for (a, b) in from.iter().zip(to) {
-        let (a, b) = (*a - a_mean, *b - b_mean);
-        cross += DMat3::from_cols(b * a.x, b * a.y, b * a.z);
-    }
-    let rotation = nearest_rotation(&cross);
-    DAffine3::from_mat3_translation(rotation, b_mean - rotation * a_mean)
 }
 
 /// The rotation nearest to `m` (polar decomposition by SVD, reflections
