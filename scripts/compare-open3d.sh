@@ -11,14 +11,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-venv=target/open3d-venv
-if [[ ! -x $venv/bin/python ]] || ! $venv/bin/python -c 'import open3d' 2>/dev/null; then
-  if ! ldconfig -p | grep -q libusb-1.0; then
-    apt-get install -y -q libusb-1.0-0 >/dev/null
-  fi
-  python3 -m venv "$venv"
-  "$venv/bin/pip" install -q open3d
-fi
+source scripts/open3d-venv.sh
 cargo build --release --quiet
 
 datasets=("$@")
