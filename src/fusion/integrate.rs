@@ -15,7 +15,7 @@ use super::chunk_bounds::{ChunkBounds, BLOCK, BLOCKS_PER_CHUNK, CHUNK};
 use super::depth_tiles::DepthTiles;
 use super::frustum::visible_blocks;
 use super::index_map::raise_to;
-use super::noise_weights::noise_weights_into;
+use super::noise_weights::NoiseWeights;
 use super::prefetch::prefetch;
 use super::surfel_map::{ChunkMut, Surfel};
 use super::{FusionConfig, SurfelMap};
@@ -65,14 +65,11 @@ pub struct Integrator {
     /// Per surfel: the pixel it is a candidate of this frame, or `NO_PIXEL`.
     pixels: Vec<u32>,
     /// Per image row: the pixels (row-major indices) that add a new
-    /// surfel, in pixel order.
-    adds: Vec<Vec<u32>>,
+    /// surfel, in pixel order, with their sensor-noise weights.
+    adds: Vec<Vec<(u32, f32)>>,
     /// Radial confidence weight per column and per row (it is separable).
     weight_u: Vec<f32>,
     weight_v: Vec<f32>,
-    /// Per pixel: the sensor-noise weight of its measurement (empty when
-    /// the noise model is uniform).
-    weight_noise: Vec<f32>,
 }
 
 /// Per map chunk: whether it is in view, and what its merges did.
@@ -109,13 +106,12 @@ impl ChunkUpdate {
 const AHEAD: usize = 16;
 
 /// Hints the caches to fetch what merging or adding pixel `i` reads: its
-/// winner, vertex, normal, colour and noise weight.
-fn prefetch_measurement(best: &[AtomicU64], view: &FrameView<'_>, weight_noise: &[f32], i: usize) {
+/// winner, vertex, normal and colour.
+fn prefetch_measurement(best: &[AtomicU64], view: &FrameView<'_>, i: usize) {
     prefetch(best, i);
     prefetch(&view.level0.vertices, i);
     prefetch(&view.level0.normals, i);
     prefetch(view.rgb, 3 * i);
-    prefetch(weight_noise, i);
 }
 
 /// Marks a surfel that is no pixel's candidate this frame.
@@ -296,8 +292,9 @@ impl Integrator {
             });
     }
 
-    /// Fills the radial confidence weight per column and per row, and the
-    /// sensor-noise weight per pixel.
+    /// Fills the radial confidence weight per column and per row (the
+    /// sensor-noise weight is computed per pixel where it is read, see
+    /// [`NoiseWeights`]).
     fn weigh(&mut self, view: &FrameView<'_>, config: &FusionConfig) {
         let k = view.k;
         // gamma^2 = ((u - cx)^2 + (v - cy)^2) / |c|^2, so the weight
@@ -311,10 +308,6 @@ impl Integrator {
         self.weight_v.clear();
         self.weight_v
             .extend((0..k.height).map(|v| radial(v as f32 - k.cy)));
-        self.weight_noise.clear();
-        if !config.noise.is_uniform() {
-            noise_weights_into(view.level0, k, config, &mut self.weight_noise);
-        }
     }
 
     /// Merges each pixel's winning surfel with the pixel's measurement (in
@@ -328,13 +321,9 @@ impl Integrator {
         view: &FrameView<'_>,
         config: &FusionConfig,
     ) -> usize {
-        let measure = Measure::new(
-            view,
-            (&self.weight_u, &self.weight_v, &self.weight_noise),
-            config,
-        );
+        let measure = Measure::new(view, (&self.weight_u, &self.weight_v), config);
+        let noise = NoiseWeights::new(view.level0, view.k, config);
         let (best, pixels, visible) = (&self.best, &self.pixels, &self.visible);
-        let weight_noise = &self.weight_noise;
         map.for_each_chunk_mut(&mut self.chunks, |mut chunk, update| {
             if !update.visible {
                 return;
@@ -343,7 +332,8 @@ impl Integrator {
             for j in ChunkBounds::in_chunk(visible, c).iter().cloned().flatten() {
                 // As in `associate`: the pixel's reads started early.
                 if let Some(a) = pixels.get(j + AHEAD).copied().filter(|&a| a != NO_PIXEL) {
-                    prefetch_measurement(best, view, weight_noise, a as usize);
+                    prefetch_measurement(best, view, a as usize);
+                    noise.prefetch(a as usize);
                 }
                 let local = j - chunk.first;
                 let pixel = pixels[j];
@@ -360,12 +350,9 @@ impl Integrator {
                 if config.is_settled(chunk.confidences[local]) {
                     continue;
                 }
-                let p = merge(
-                    &mut chunk,
-                    local,
-                    &measure.surfel(pixel as usize),
-                    measure.gain(pixel as usize),
-                );
+                let pixel = pixel as usize;
+                let m = measure.surfel(pixel, noise.at(pixel));
+                let p = merge(&mut chunk, local, &m, measure.gain(pixel));
                 let block = local / BLOCK;
                 update.min[block] = update.min[block].min(p);
                 update.max[block] = update.max[block].max(p);
@@ -396,11 +383,8 @@ impl Integrator {
         config: &FusionConfig,
         stats: &mut FusionStats,
     ) {
-        let measure = Measure::new(
-            view,
-            (&self.weight_u, &self.weight_v, &self.weight_noise),
-            config,
-        );
+        let measure = Measure::new(view, (&self.weight_u, &self.weight_v), config);
+        let noise = NoiseWeights::new(view.level0, view.k, config);
         let cos_gate = libm::cosf(config.normal_gate_deg.to_radians());
         let (level0, best) = (view.level0, &self.best);
         let (w, h) = (view.k.width, view.k.height);
@@ -439,7 +423,7 @@ impl Integrator {
                     ) {
                         covered += 1;
                     } else {
-                        row.push(i as u32);
+                        row.push((i as u32, noise.at(i)));
                     }
                 }
                 covered
@@ -447,16 +431,16 @@ impl Integrator {
             .sum();
         // Appended in pixel order: the same map on any thread count.
         let mut ahead = self.adds.iter().flatten().skip(AHEAD);
-        for &i in self.adds.iter().flatten() {
-            if let Some(&a) = ahead.next() {
-                prefetch_measurement(best, view, &self.weight_noise, a as usize);
+        for &(i, noise_weight) in self.adds.iter().flatten() {
+            if let Some(&(a, _)) = ahead.next() {
+                prefetch_measurement(best, view, a as usize);
             }
             if map.len() >= config.max_surfels {
                 stats.skipped += 1;
                 continue;
             }
             let i = i as usize;
-            let m = measure.surfel(i);
+            let m = measure.surfel(i, noise_weight);
             map.push(
                 m.position,
                 m.normal,
@@ -475,8 +459,6 @@ struct Measure<'a> {
     view: &'a FrameView<'a>,
     weight_u: &'a [f32],
     weight_v: &'a [f32],
-    /// Per pixel noise weight, or empty (all 1).
-    weight_noise: &'a [f32],
     focal: f32,
     max_radius_m: f32,
 }
@@ -484,14 +466,13 @@ struct Measure<'a> {
 impl<'a> Measure<'a> {
     fn new(
         view: &'a FrameView<'a>,
-        (weight_u, weight_v, weight_noise): (&'a [f32], &'a [f32], &'a [f32]),
+        (weight_u, weight_v): (&'a [f32], &'a [f32]),
         config: &FusionConfig,
     ) -> Self {
         Self {
             view,
             weight_u,
             weight_v,
-            weight_noise,
             focal: view.k.focal_abs(),
             max_radius_m: config.max_radius_m,
         }
@@ -505,8 +486,9 @@ impl<'a> Measure<'a> {
     }
 
     /// The surfel pixel `i` (row-major) measures: world frame, metres, with
-    /// the radial confidence weight.
-    fn surfel(&self, i: usize) -> Surfel {
+    /// the radial confidence weight times `noise_weight` (the pixel's
+    /// [`NoiseWeights::at`]).
+    fn surfel(&self, i: usize, noise_weight: f32) -> Surfel {
         let w = self.view.k.width;
         let p = self.view.level0.vertices[i];
         let n_cam = self.view.level0.normals[i];
@@ -518,9 +500,7 @@ impl<'a> Measure<'a> {
             normal: self.view.world_from_camera.vector(n_cam),
             colour: [c[0], c[1], c[2], 255],
             radius,
-            confidence: self.weight_u[i % w]
-                * self.weight_v[i / w]
-                * self.weight_noise.get(i).copied().unwrap_or(1.0),
+            confidence: self.weight_u[i % w] * self.weight_v[i / w] * noise_weight,
         }
     }
 }
