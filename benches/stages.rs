@@ -19,6 +19,7 @@ use surfel_slam::preprocess::{back_project_into, normals_into, FramePyramid};
 use surfel_slam::se3::RigidF32;
 use surfel_slam::synthetic::{self, NoiseModel, Scene};
 use surfel_slam::track::icp::icp_step;
+use surfel_slam::track::model_points::ModelPoints;
 use surfel_slam::track::rgb::RgbWorkspace;
 use surfel_slam::{CameraPreset, Pipeline, RgbdFrame, SlamConfig};
 
@@ -147,11 +148,15 @@ fn stages(c: &mut Criterion) {
 
     let camera_from_world = RigidF32::from_affine(&f.pose.inverse());
     let gates = f.config.tracker.gates;
+    let mut sources = ModelPoints::default();
+    c.bench_function("icp sources (gather the prediction's pixels)", |b| {
+        b.iter(|| sources.gather_from(&prediction));
+    });
     for (level, target) in pyramid.levels.iter().enumerate() {
         c.bench_function(&format!("icp iteration level {level}"), |b| {
             b.iter(|| {
                 icp_step(
-                    &prediction,
+                    &sources,
                     1 << level,
                     target,
                     &camera_from_world,

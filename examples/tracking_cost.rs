@@ -10,6 +10,7 @@ use surfel_slam::fusion::{DepthTiles, Measured, Prediction};
 use surfel_slam::preprocess::FramePyramid;
 use surfel_slam::se3::RigidF32;
 use surfel_slam::track::icp::icp_step;
+use surfel_slam::track::model_points::ModelPoints;
 use surfel_slam::track::rgb::RgbWorkspace;
 use surfel_slam::{Pipeline, SlamConfig};
 
@@ -53,6 +54,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t = RigidF32::from_affine(&pose.inverse());
     let mut rgb = RgbWorkspace::default();
     let photometric = &config.tracker.photometric;
+    let mut sources = ModelPoints::default();
+    sources.gather_from(&prediction);
     let reps = 50;
     let t0 = Instant::now();
     for _ in 0..reps {
@@ -74,7 +77,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut m = 0;
         for _ in 0..reps {
             m = icp_step(
-                &prediction,
+                &sources,
                 1 << level,
                 target,
                 &t,

@@ -18,6 +18,7 @@ use crate::preprocess::PyramidLevel;
 use crate::se3;
 use crate::se3::RigidF32;
 use crate::track::icp::icp_step;
+use crate::track::model_points::ModelPoints;
 use crate::track::verify::{free_space_violation, VerifyConfig};
 use glam::{DAffine3, Vec3};
 
@@ -137,6 +138,8 @@ pub struct ModelRegistration {
     target: PyramidLevel,
     /// Active prediction's points in the same camera frame (free-space check).
     active_points: Vec<Vec3>,
+    /// The active prediction's pixels holding a surfel: the ICP sources.
+    sources: ModelPoints,
 }
 
 /// Brings a prediction's world-frame maps into the camera frame of the pose
@@ -185,11 +188,12 @@ impl ModelRegistration {
         }
         let view = inactive.world_from_camera;
         to_camera_frame_into(inactive, &mut self.target);
-        let (camera_from_world, start_residual_rms_m) = self.align(active, view.inverse(), config);
+        self.sources.gather_from(active);
+        let (camera_from_world, start_residual_rms_m) = self.align(view.inverse(), config);
         if !(view * camera_from_world).is_finite() {
             return Registration::rejected(Rejection::Degenerate, overlap);
         }
-        let mut result = self.evaluate(active, (view, &camera_from_world), config, overlap);
+        let mut result = self.evaluate((view, &camera_from_world), config, overlap);
         result.start_residual_rms_m = start_residual_rms_m;
         result.rejected = judge(&result, config, n);
         if result.rejected.is_none() {
@@ -210,12 +214,11 @@ impl ModelRegistration {
     /// before the first step (metres).
     fn align(
         &self,
-        active: &Prediction,
         mut camera_from_world: DAffine3,
         config: &LoopClosureConfig,
     ) -> (DAffine3, f64) {
         let start = icp_step(
-            active,
+            &self.sources,
             1,
             &self.target,
             &RigidF32::from_affine(&camera_from_world),
@@ -227,7 +230,7 @@ impl ModelRegistration {
             let stride = 1usize << level;
             for _ in 0..iterations {
                 let t = RigidF32::from_affine(&camera_from_world);
-                let step = icp_step(active, stride, &self.target, &t, &config.gates, None);
+                let step = icp_step(&self.sources, stride, &self.target, &t, &config.gates, None);
                 if step.system.count < 6 {
                     break;
                 }
@@ -248,13 +251,12 @@ impl ModelRegistration {
     /// and the estimate.
     fn evaluate(
         &self,
-        active: &Prediction,
         (view, camera_from_world): (DAffine3, &DAffine3),
         config: &LoopClosureConfig,
         overlap: usize,
     ) -> Registration {
         let t = RigidF32::from_affine(camera_from_world);
-        let last = icp_step(active, 1, &self.target, &t, &config.gates, None);
+        let last = icp_step(&self.sources, 1, &self.target, &t, &config.gates, None);
         let system = &last.system;
         let inliers = system.count;
         Registration {

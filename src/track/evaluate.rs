@@ -41,7 +41,6 @@ pub(super) struct Evaluation {
 /// `camera_from_world`, with ICP sources every `stride` model pixels.
 fn evaluate(
     pyramid: &FramePyramid,
-    prediction: &Prediction,
     workspace: &TrackerWorkspace,
     (level, stride): (usize, usize),
     camera_from_world: &DAffine3,
@@ -52,7 +51,7 @@ fn evaluate(
     let target = &pyramid.levels[level];
     let mean = |s: &se3::NormalEquations| s.cost / s.count.max(1) as f64;
     let weights = noise_weights(pyramid, config);
-    let icp_full = || icp_step(prediction, stride, target, &t, &config.gates, weights);
+    let icp_full = || icp_step(&workspace.model, stride, target, &t, &config.gates, weights);
     let dense = |step: &icp::IcpStep| (level == 0 && stride == 1).then_some(*step);
     let rgb = || {
         workspace
@@ -130,7 +129,6 @@ impl Problem<'_> {
     ) -> Evaluation {
         evaluate(
             self.pyramid,
-            self.prediction,
             self.workspace,
             level_stride,
             camera_from_world,

@@ -23,12 +23,12 @@
 //! minimise the same cost as the fine one, on fewer points). A uniform
 //! model gives `s = 1`: the unweighted tracker.
 
-use crate::fusion::Prediction;
 use crate::noise::SensorNoise;
 use crate::ordered_sum::sum_in_blocks;
 use crate::preprocess::PyramidLevel;
 use crate::se3::RigidF32;
 use crate::se3::{NormalEquations, RowAccumulator};
+use crate::track::model_points::ModelPoints;
 use glam::Vec3;
 
 /// Gates and robust weight of one ICP step.
@@ -107,12 +107,13 @@ impl IcpStep {
 
 /// Builds the point-to-plane normal equations at one pyramid level.
 ///
-/// Source points are the prediction's pixels on a grid of step `stride`
-/// (matching the level's downsampling). Residuals are weighted by `noise`
-/// (see the module doc); `None` or a uniform model weighs them all 1.
+/// Source points are the model prediction's pixels (`model`, gathered from
+/// it) on a grid of step `stride` (matching the level's downsampling).
+/// Residuals are weighted by `noise` (see the module doc); `None` or a
+/// uniform model weighs them all 1.
 #[must_use]
 pub fn icp_step(
-    prediction: &Prediction,
+    model: &ModelPoints,
     stride: usize,
     target: &PyramidLevel,
     camera_from_world: &RigidF32,
@@ -120,25 +121,35 @@ pub fn icp_step(
     noise: Option<NoiseWeights<'_>>,
 ) -> IcpStep {
     let noise = noise.filter(|n| !n.noise.is_uniform());
-    let (Some(pk), Some(tk)) = (prediction.intrinsics, target.intrinsics) else {
+    let (Some(pk), Some(tk)) = (model.intrinsics, target.intrinsics) else {
         return IcpStep::default();
     };
     let cos_gate = libm::cosf(gates.normal_gate_deg.to_radians());
     let gate2 = gates.distance_gate_m * gates.distance_gate_m;
     let stride = stride.max(1);
+    let stride_u32 = u32::try_from(stride).unwrap_or(u32::MAX);
     // Fixed blocks of rows summed in row order: the same bits on any
     // number of threads (see `ordered_sum`).
     let row_sum = |row: usize| {
         let mut acc = IcpStep::default();
-        let base = row * stride * pk.width;
+        let (columns, vertices, normals) = model.row(row * stride);
         let mut sums = RowAccumulator::default();
         let (mut candidate_weight, mut inlier_weight) = (0.0f32, 0.0f32);
-        for u in (0..pk.width).step_by(stride) {
-            let n_model = prediction.normals[base + u];
-            if n_model == Vec3::ZERO {
+        // The next grid column; columns ascend, so a point left of it is
+        // skipped without a division.
+        let mut next = 0u32;
+        for ((&u, &vertex), &n_model) in columns.iter().zip(vertices).zip(normals) {
+            if u < next {
                 continue;
             }
-            let p = camera_from_world.point(prediction.vertices[base + u]);
+            if u != next {
+                next = u.next_multiple_of(stride_u32);
+                if u != next {
+                    continue;
+                }
+            }
+            next = next.saturating_add(stride_u32);
+            let p = camera_from_world.point(vertex);
             if p.z <= 0.0 {
                 continue;
             }

@@ -16,6 +16,7 @@
 mod evaluate;
 pub mod free_directions;
 pub mod icp;
+pub mod model_points;
 pub mod rgb;
 pub mod verify;
 
@@ -282,6 +283,8 @@ fn source_stride(
 pub struct TrackerWorkspace {
     rgb: RgbWorkspace,
     grid: GridWorkspace,
+    /// The prediction's pixels holding a surfel: ICP's sources.
+    model: model_points::ModelPoints,
 }
 
 impl TrackerWorkspace {
@@ -345,6 +348,9 @@ pub fn track_holding(
         workspace
             .rgb
             .prepare(pyramid, prediction, &config.photometric);
+    }
+    if config.mode != TrackerMode::Rgb {
+        workspace.model.gather_from(prediction);
     }
     let free = match (config.mode, pyramid.levels.last(), held) {
         (TrackerMode::Icp, _, Some(held)) => *held,
@@ -509,7 +515,7 @@ fn track_result(
         let t = RigidF32::from_affine(camera_from_world);
         let weights = noise_weights(problem.pyramid, config);
         last = icp_step(
-            problem.prediction,
+            &problem.workspace.model,
             1,
             finest_level,
             &t,
