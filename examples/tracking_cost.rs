@@ -75,22 +75,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let rgb_ms = t0.elapsed().as_secs_f64() * 1e3 / f64::from(reps);
         let t0 = Instant::now();
         let mut m = 0;
+        let mut candidates = 0;
         for _ in 0..reps {
-            m = icp_step(
+            let step = icp_step(
                 &sources,
                 1 << level,
                 target,
                 &t,
                 &config.tracker.gates,
                 None,
-            )
-            .system
-            .count;
+            );
+            m = step.system.count;
+            candidates = step.candidates;
         }
         let icp_ms = t0.elapsed().as_secs_f64() * 1e3 / f64::from(reps);
         println!(
-            "level {level}: photometric {rgb_ms:.2} ms/iteration ({} selected, {n} used), ICP {icp_ms:.2} ms/iteration ({m} inliers)",
-            rgb.reference_count(level)
+            "level {level}: photometric {rgb_ms:.2} ms/iteration ({} selected, {n} used), ICP {icp_ms:.2} ms/iteration ({m} inliers of {candidates} candidates, {} model points)",
+            rgb.reference_count(level),
+            sources.len()
         );
     }
     println!("threads: {}", rayon::current_num_threads());

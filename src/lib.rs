@@ -25,6 +25,7 @@ pub mod noise;
 pub mod ordered_sum;
 pub mod pipeline;
 pub mod portable_math;
+mod prefetch;
 pub mod preprocess;
 pub mod random;
 pub mod se3;

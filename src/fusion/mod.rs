@@ -27,7 +27,6 @@ mod integrate;
 mod map_state;
 mod noise_weights;
 pub mod predict;
-mod prefetch;
 mod spatial_order;
 mod surfel_map;
 

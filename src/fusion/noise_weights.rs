@@ -2,10 +2,10 @@
 //! measurement's share in a merge (far, oblique and depth-edge pixels move
 //! a surfel seen better before by little). Camera frame, metres.
 
-use super::prefetch::prefetch;
 use super::FusionConfig;
 use crate::camera::Intrinsics;
 use crate::noise::SensorNoise;
+use crate::prefetch::prefetch;
 use crate::preprocess::PyramidLevel;
 use glam::Vec3;
 

@@ -25,6 +25,7 @@
 
 use crate::noise::SensorNoise;
 use crate::ordered_sum::sum_in_blocks;
+use crate::prefetch::prefetch;
 use crate::preprocess::PyramidLevel;
 use crate::se3::RigidF32;
 use crate::se3::{NormalEquations, RowAccumulator};
@@ -138,50 +139,72 @@ pub fn icp_step(
         // The next grid column; columns ascend, so a point left of it is
         // skipped without a division.
         let mut next = 0u32;
-        for ((&u, &vertex), &n_model) in columns.iter().zip(vertices).zip(normals) {
-            if u < next {
-                continue;
-            }
-            if u != next {
-                next = u.next_multiple_of(stride_u32);
-                if u != next {
+        let mut i = 0;
+        // Points are taken in batches: a batch's projections are computed
+        // and their frame pixels hinted to the caches first, then the
+        // batch is summed in order (the reads of the frame at the
+        // projections waited on memory).
+        let mut points = [Vec3::ZERO; BATCH];
+        let mut model_normals = [Vec3::ZERO; BATCH];
+        let mut pixels = [NO_PIXEL; BATCH];
+        while i < columns.len() {
+            let mut count = 0;
+            while i < columns.len() && count < BATCH {
+                let u = columns[i];
+                i += 1;
+                if u < next {
                     continue;
                 }
+                if u != next {
+                    next = u.next_multiple_of(stride_u32);
+                    if u != next {
+                        continue;
+                    }
+                }
+                next = next.saturating_add(stride_u32);
+                let p = camera_from_world.point(vertices[i - 1]);
+                points[count] = p;
+                model_normals[count] = normals[i - 1];
+                pixels[count] = if p.z <= 0.0 {
+                    NO_PIXEL
+                } else {
+                    tk.pixel_index(tk.project(p)).unwrap_or(NO_PIXEL)
+                };
+                prefetch(&target.vertices, pixels[count]);
+                prefetch(&target.normals, pixels[count]);
+                count += 1;
             }
-            next = next.saturating_add(stride_u32);
-            let p = camera_from_world.point(vertex);
-            if p.z <= 0.0 {
-                continue;
+            for ((&p, &n_model), &j) in points.iter().zip(&model_normals).zip(&pixels).take(count) {
+                if j == NO_PIXEL {
+                    continue;
+                }
+                acc.candidates += 1;
+                let wp = noise.map_or(1.0, |w| w.noise.weight(w.noise.axial_m(p.z)));
+                candidate_weight += wp;
+                let q = target.vertices[j];
+                let n = target.normals[j];
+                if q.z <= 0.0 || n == Vec3::ZERO {
+                    continue;
+                }
+                let d = p - q;
+                if d.length_squared() > gate2 {
+                    continue;
+                }
+                if camera_from_world.vector(n_model).dot(n) < cos_gate {
+                    continue;
+                }
+                let scale = noise.map_or(1.0, |w| w.point_to_plane_scale(q, p, n));
+                let r = n.dot(d) * scale;
+                let c = p.cross(n) * scale;
+                let ns = n * scale;
+                let w = if r.abs() <= gates.huber_m {
+                    1.0
+                } else {
+                    gates.huber_m / r.abs()
+                };
+                sums.add(&[c.x, c.y, c.z, ns.x, ns.y, ns.z], r, w);
+                inlier_weight += wp;
             }
-            let Some(j) = tk.pixel_index(tk.project(p)) else {
-                continue;
-            };
-            acc.candidates += 1;
-            let wp = noise.map_or(1.0, |w| w.noise.weight(w.noise.axial_m(p.z)));
-            candidate_weight += wp;
-            let q = target.vertices[j];
-            let n = target.normals[j];
-            if q.z <= 0.0 || n == Vec3::ZERO {
-                continue;
-            }
-            let d = p - q;
-            if d.length_squared() > gate2 {
-                continue;
-            }
-            if camera_from_world.vector(n_model).dot(n) < cos_gate {
-                continue;
-            }
-            let scale = noise.map_or(1.0, |w| w.point_to_plane_scale(q, p, n));
-            let r = n.dot(d) * scale;
-            let c = p.cross(n) * scale;
-            let ns = n * scale;
-            let w = if r.abs() <= gates.huber_m {
-                1.0
-            } else {
-                gates.huber_m / r.abs()
-            };
-            sums.add(&[c.x, c.y, c.z, ns.x, ns.y, ns.z], r, w);
-            inlier_weight += wp;
         }
         sums.flush_into(&mut acc.system);
         acc.candidate_weight += f64::from(candidate_weight);
@@ -195,6 +218,12 @@ pub fn icp_step(
         IcpStep::merged,
     )
 }
+
+/// Points of a row projected and hinted before they are summed.
+const BATCH: usize = 32;
+
+/// Marks a point that projects outside the frame (or lies behind the camera).
+const NO_PIXEL: usize = usize::MAX;
 
 /// Rows of source points summed together before the blocks are combined.
 const ROWS_PER_BLOCK: usize = 4;
