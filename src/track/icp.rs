@@ -147,6 +147,11 @@ pub fn icp_step(
         let mut points = [Vec3::ZERO; BATCH];
         let mut model_normals = [Vec3::ZERO; BATCH];
         let mut pixels = [NO_PIXEL; BATCH];
+        // Model point, frame point and frame normal of each inlier of a
+        // batch (camera frame), with its noise weight and scale.
+        let mut pairs = [(Vec3::ZERO, Vec3::ZERO, Vec3::ZERO); BATCH];
+        let mut weights = [0.0f32; BATCH];
+        let mut scales = [1.0f32; BATCH];
         while i < columns.len() {
             let mut count = 0;
             while i < columns.len() && count < BATCH {
@@ -174,6 +179,9 @@ pub fn icp_step(
                 prefetch(&target.normals, pixels[count]);
                 count += 1;
             }
+            // The correspondences that pass the gates, then their noise
+            // scales in one loop (the compiler vectorises it), then the sums.
+            let mut inliers = 0;
             for ((&p, &n_model), &j) in points.iter().zip(&model_normals).zip(&pixels).take(count) {
                 if j == NO_PIXEL {
                     continue;
@@ -193,7 +201,18 @@ pub fn icp_step(
                 if camera_from_world.vector(n_model).dot(n) < cos_gate {
                     continue;
                 }
-                let scale = noise.map_or(1.0, |w| w.point_to_plane_scale(q, p, n));
+                pairs[inliers] = (p, q, n);
+                weights[inliers] = wp;
+                inliers += 1;
+            }
+            if let Some(w) = noise {
+                for (scale, &(p, q, n)) in scales.iter_mut().zip(&pairs).take(inliers) {
+                    *scale = w.point_to_plane_scale(q, p, n);
+                }
+            }
+            for ((&(p, q, n), &scale), &wp) in pairs.iter().zip(&scales).zip(&weights).take(inliers)
+            {
+                let d = p - q;
                 let r = n.dot(d) * scale;
                 let c = p.cross(n) * scale;
                 let ns = n * scale;
