@@ -114,6 +114,65 @@ fn prefetch_measurement(best: &[AtomicU64], view: &FrameView<'_>, i: usize) {
     prefetch(view.rgb, 3 * i);
 }
 
+/// Winners merged together after their noise weights are computed together.
+const MERGE_BATCH: usize = 32;
+
+/// Winners of a chunk waiting to be merged: local surfel index and pixel.
+struct MergeBatch {
+    locals: [usize; MERGE_BATCH],
+    pixels: [usize; MERGE_BATCH],
+    noise_weights: [f32; MERGE_BATCH],
+    count: usize,
+}
+
+impl Default for MergeBatch {
+    fn default() -> Self {
+        Self {
+            locals: [0; MERGE_BATCH],
+            pixels: [0; MERGE_BATCH],
+            noise_weights: [0.0; MERGE_BATCH],
+            count: 0,
+        }
+    }
+}
+
+impl MergeBatch {
+    /// Queues surfel `local` to merge with pixel `pixel`'s measurement;
+    /// true when the batch is full.
+    fn push(&mut self, local: usize, pixel: usize) -> bool {
+        self.locals[self.count] = local;
+        self.pixels[self.count] = pixel;
+        self.count += 1;
+        self.count == MERGE_BATCH
+    }
+
+    /// Merges the queued winners (each a different surfel, so the order
+    /// changes nothing), grows their blocks' boxes, and empties the batch.
+    fn merge_into(
+        &mut self,
+        chunk: &mut ChunkMut<'_>,
+        update: &mut ChunkUpdate,
+        (measure, noise): (&Measure<'_>, &NoiseWeights<'_>),
+    ) {
+        let n = self.count;
+        noise.at_each_into(&self.pixels[..n], &mut self.noise_weights[..n]);
+        for ((&local, &pixel), &noise_weight) in self
+            .locals
+            .iter()
+            .zip(&self.pixels)
+            .zip(&self.noise_weights)
+            .take(n)
+        {
+            let m = measure.surfel(pixel, noise_weight);
+            let p = merge(chunk, local, &m, measure.gain(pixel));
+            let block = local / BLOCK;
+            update.min[block] = update.min[block].min(p);
+            update.max[block] = update.max[block].max(p);
+        }
+        self.count = 0;
+    }
+}
+
 /// Marks a surfel that is no pixel's candidate this frame.
 const NO_PIXEL: u32 = u32::MAX;
 
@@ -329,6 +388,9 @@ impl Integrator {
                 return;
             }
             let c = chunk.first / CHUNK;
+            // The winners to merge are taken in batches: a batch's noise
+            // weights are computed together (see `NoiseWeights::at_each_into`).
+            let mut batch = MergeBatch::default();
             for j in ChunkBounds::in_chunk(visible, c).iter().cloned().flatten() {
                 // As in `associate`: the pixel's reads started early.
                 if let Some(a) = pixels.get(j + AHEAD).copied().filter(|&a| a != NO_PIXEL) {
@@ -350,13 +412,11 @@ impl Integrator {
                 if config.is_settled(chunk.confidences[local]) {
                     continue;
                 }
-                let pixel = pixel as usize;
-                let m = measure.surfel(pixel, noise.at(pixel));
-                let p = merge(&mut chunk, local, &m, measure.gain(pixel));
-                let block = local / BLOCK;
-                update.min[block] = update.min[block].min(p);
-                update.max[block] = update.max[block].max(p);
+                if batch.push(local, pixel as usize) {
+                    batch.merge_into(&mut chunk, update, (&measure, &noise));
+                }
             }
+            batch.merge_into(&mut chunk, update, (&measure, &noise));
         });
         let mut merged = 0;
         for (c, update) in self.chunks.iter().enumerate() {
