@@ -14,16 +14,15 @@
 
 use crate::camera::{pixel_of, Intrinsics};
 use crate::fusion::SurfelMap;
+use crate::prefetch::prefetch;
 use crate::se3::RigidF32;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Calls `f(i)` in parallel for every surfel index in `ranges` (blocks of the map).
-pub fn for_each_in(ranges: &[Range<usize>], f: impl Fn(usize) + Sync + Send) {
-    ranges.par_iter().for_each(|r| r.clone().for_each(&f));
-}
+/// Surfels projected and hinted together by [`IndexMap::render`].
+const BATCH: usize = 32;
 
 /// Chosen-surfel buffer of a camera view, one cell per pixel.
 #[derive(Debug, Default)]
@@ -68,18 +67,38 @@ impl IndexMap {
         // exchange in threaded wasm, whose atomics are sequentially consistent.
         self.chosen.par_iter_mut().for_each(|c| *c.get_mut() = 0);
         let chosen = &self.chosen;
-        for_each_in(ranges, |i| {
-            if !include(i) {
-                return;
-            }
-            let Some((z, cell)) = pixel_of(k, camera_from_world.point(map.positions[i])) else {
-                return;
-            };
-            let surface = measured.get(cell).map_or(0.0, |p| p.z);
-            if surface > 0.0 && z <= surface + band_m {
-                // Confidences are positive, so their bit patterns order like the values.
-                let key = (u64::from(map.confidences[i].max(0.0).to_bits()) << 32) | (i as u64 + 1);
-                raise_to(&chosen[cell], key);
+        // A batch of surfels is projected and the measured points and
+        // cells at their pixels hinted to the caches before the batch is
+        // tested (those reads are random and waited on memory).
+        ranges.par_iter().for_each(|range| {
+            let mut cells = [(0usize, 0.0f32, 0usize); BATCH];
+            let mut start = range.start;
+            while start < range.end {
+                let end = (start + BATCH).min(range.end);
+                let mut count = 0;
+                for i in start..end {
+                    if !include(i) {
+                        continue;
+                    }
+                    let Some((z, cell)) = pixel_of(k, camera_from_world.point(map.positions[i]))
+                    else {
+                        continue;
+                    };
+                    prefetch(measured, cell);
+                    prefetch(chosen, cell);
+                    cells[count] = (i, z, cell);
+                    count += 1;
+                }
+                for &(i, z, cell) in &cells[..count] {
+                    let surface = measured.get(cell).map_or(0.0, |p| p.z);
+                    if surface > 0.0 && z <= surface + band_m {
+                        // Confidences are positive, so their bit patterns order like the values.
+                        let key = (u64::from(map.confidences[i].max(0.0).to_bits()) << 32)
+                            | (i as u64 + 1);
+                        raise_to(&chosen[cell], key);
+                    }
+                }
+                start = end;
             }
         });
     }
