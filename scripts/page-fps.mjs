@@ -3,7 +3,8 @@
 // (threaded module, flow overlay off) and prints the page's own speed
 // figures from window.surfelSlamStatus: fps over every `--every` frames as
 // the run goes (the frames processed in the window over its wall time),
-// then the median ms per stage in wasm and the splats the map view drew.
+// then the median ms per stage in wasm, the splats the map view drew and
+// the module's memory (its linear memory, which only grows: the peak).
 //
 //   node scripts/page-fps.mjs [--folder DIR] [--frames N] [--every N]
 //                             [--threads 0] [--colour wasm] [--splats N]
@@ -56,7 +57,7 @@ try {
   }
   console.log(
     `${folder ?? 'sample'}: ${s.framesProcessed} frames, module ${s.module} (${s.threads} threads), ` +
-      `fps ${s.fpsAverage} average, lost ${s.framesLost}, surfels ${s.surfels}, ` +
+      `fps ${s.fpsAverage} average, lost ${s.framesLost}, surfels ${s.surfels}, wasm memory ${s.wasmMemoryMiB} MiB, ` +
       `colour decoded by ${s.colourDecoder} (${s.framesColourDecodedInBrowser} frames in the browser)`,
   );
   console.log(`fps series (frames: fps): ${series.join(', ')}`);

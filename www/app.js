@@ -43,6 +43,7 @@ const status = {
   fps: 0, // frames per second over the last ~15 frames
   fpsAverage: 0, // frames per second from the first to the latest frame of this run
   msPerFrame: 0, // wasm time per frame (decode + preprocess + track + fuse + predict)
+  wasmMemoryMiB: null, // the module's linear memory after the last frame, MiB (it never shrinks: the peak)
   stageMedianMs: null, // median ms per stage and in total over the frames since the last reset
   workerMedianMs: null, // median ms of the worker's steps per frame (read, push, copy, ate, gap, wall)
   colourDecoder: null, // who decoded the last frame's colour image: 'browser' (the worker) or 'wasm'
@@ -446,6 +447,7 @@ const handlers = {
   [FromWorker.FRAME](msg) {
     const t0 = performance.now();
     status.flowTracks = msg.flow?.tracks ? msg.flow.tracks.length / 4 : 0;
+    if (Number.isFinite(msg.wasmMemoryBytes)) status.wasmMemoryMiB = Number((msg.wasmMemoryBytes / 2 ** 20).toFixed(1));
     stats.onFrame(msg);
     if (msg.result.settingsWarning) reportWarning(msg.result.settingsWarning);
     countRunFrame(msg);

@@ -45,7 +45,7 @@ export const FromWorker = Object.freeze({
   READY: 'ready',
   /** {name, kind, preset, config, frameCount, groundTruth, fileCount, warnings, session?}: a sequence was opened (session: as SESSION_OPENED's, when it goes on from an opened session) (warnings: camera settings that do not fit its layout). */
   SEQUENCE: 'sequence',
-  /** {index, frameCount, timestamp, result, surfels, refresh, ate, timing, input, flow, done}: one frame processed. */
+  /** {index, frameCount, timestamp, result, surfels, refresh, ate, wasmMemoryBytes, timing, input, flow, done}: one frame processed (wasmMemoryBytes: the module's linear memory, its peak). */
   FRAME: 'frame',
   /** {index, message, frameCount, input?}: one frame skipped (unreadable or refused). */
   FRAME_ERROR: 'frame-error',

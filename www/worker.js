@@ -489,6 +489,7 @@ async function processNext() {
       refresh: refreshed,
       trajectoryTum,
       ate,
+      wasmMemoryBytes: typeof wasm.memoryBytes === 'function' ? wasm.memoryBytes() : null,
       timing: {
         read: tRead - t0,
         push: tPush - tRead,

@@ -54,6 +54,16 @@ pub fn thread_count() -> u32 {
     u32::try_from(rayon::current_num_threads()).unwrap_or(u32::MAX)
 }
 
+/// Bytes of the module's linear memory: all the module holds (maps,
+/// buffers, allocator slack). Wasm memory never shrinks, so this is also
+/// the peak.
+#[wasm_bindgen(js_name = memoryBytes)]
+#[must_use]
+pub fn memory_bytes() -> f64 {
+    // Pages of 64 KiB; as f64, since JS numbers are exact to 2^53.
+    (core::arch::wasm32::memory_size(0) as f64) * 65536.0
+}
+
 /// The camera presets with their intrinsics and depth settings:
 /// `[{name, fx, fy, cx, cy, width, height, depthScale, depthMin, depthMax}, ...]`.
 #[wasm_bindgen(unchecked_return_type = "Preset[]")]

@@ -71,6 +71,8 @@ test('bundled sample plays with the threaded module and draws the map', { timeou
     assert.ok(status.framesProcessed >= MIN_FRAMES, `frames processed ${status.framesProcessed} >= ${MIN_FRAMES}`);
     assert.ok(status.framesLost <= MAX_LOST, `tracking held: ${status.framesLost} lost frames`);
     assert.ok(status.surfels > 10_000, `surfels ${status.surfels} > 10000`);
+    // The module reports its memory: at least its maps' arrays (a surfel is ~40 bytes).
+    assert.ok(status.wasmMemoryMiB > (status.surfels * 40) / 2 ** 20, `wasm memory ${status.wasmMemoryMiB} MiB for ${status.surfels} surfels`);
     assert.ok(status.flowTracks > 20, `flow overlay drew ${status.flowTracks} tracks`);
     assert.ok(Number.isFinite(status.ate) && status.ate < 0.1, `ATE so far ${status.ate} m < 0.1 m`);
     assert.ok(pixels.variance > 100, `canvas is not blank (luminance variance ${pixels.variance.toFixed(1)})`);

@@ -60,7 +60,7 @@ test('package.json is complete and its files exist', { skip: skipNoPkg }, async 
   assert.ok(existsSync(path.join(pkgDir, pkg.types)));
 });
 
-test('module loads from bytes; presets and threadCount', { skip: skipNoPkg }, async () => {
+test('module loads from bytes; presets, threadCount and memoryBytes', { skip: skipNoPkg }, async () => {
   const m = await loadPackage();
   const presets = m.presets();
   assert.deepEqual(
@@ -69,6 +69,12 @@ test('module loads from bytes; presets and threadCount', { skip: skipNoPkg }, as
   );
   assert.equal(presets[3].fy, -480);
   assert.equal(m.threadCount(), 1);
+  // Memory is whole 64 KiB pages, and grows by what a Slam allocates.
+  const before = m.memoryBytes();
+  assert.ok(before > 0 && before % 65536 === 0, `memoryBytes ${before}`);
+  const slam = new m.Slam({ preset: 'tum-fr3' });
+  assert.ok(m.memoryBytes() >= before);
+  slam.free();
   assert.throws(() => new m.Slam({ preset: 'nope' }), /unknown preset "nope"/);
   assert.throws(() => new m.Slam({ preset: 'tum-fr3', depthScale: 0 }), /depth scale/);
   assert.throws(() => new m.Slam({ presett: 'tum-fr3' }), /unknown config field "presett"/);
