@@ -349,9 +349,8 @@ pub fn track_holding(
             .rgb
             .prepare(pyramid, prediction, &config.photometric);
     }
-    if config.mode != TrackerMode::Rgb {
-        workspace.model.gather_from(prediction);
-    }
+    // Every mode: the frame is judged on ICP's statistics (`track_result`).
+    workspace.model.gather_from(prediction);
     let free = match (config.mode, pyramid.levels.last(), held) {
         (TrackerMode::Icp, _, Some(held)) => *held,
         (TrackerMode::Icp, Some(coarsest), None) => {
