@@ -1,0 +1,249 @@
+//! Preprocessing loops over `Vec3` maps written out in wasm simd128, four
+//! pixels at a time, for the wasm module only: LLVM does not vectorise the
+//! scalar loops for wasm (they read or write `Vec3`s, three floats apart,
+//! and leave early at invalid pixels), and V8 runs them one pixel at a time.
+//!
+//! Each lane performs the scalar code's operations in the same order (glam's
+//! `cross`, `dot`, `length` and `/ f32`, and `Intrinsics::back_project`,
+//! spelled out), and its early exits become masks, so every result is the
+//! same bit for bit; a lane that would have left early computes on and is
+//! set to zero at the end.
+
+use crate::camera::Intrinsics;
+use core::arch::wasm32::{
+    f32x4_abs, f32x4_add, f32x4_convert_i32x4, f32x4_div, f32x4_gt, f32x4_le, f32x4_lt, f32x4_mul,
+    f32x4_neg, f32x4_splat, f32x4_sqrt, f32x4_sub, i32x4, i32x4_add, i32x4_shuffle, i32x4_splat,
+    v128, v128_and, v128_andnot, v128_bitselect, v128_load, v128_not, v128_or, v128_store,
+};
+use glam::Vec3;
+
+// Four `Vec3`s are three v128s: x y z x | y z x y | z x y z.
+const _: () = assert!(std::mem::size_of::<Vec3>() == 12);
+
+/// The x, y and z of four consecutive vertices.
+struct Xyz {
+    x: v128,
+    y: v128,
+    z: v128,
+}
+
+impl Xyz {
+    /// `s[i..i + 4]` (checked), deinterleaved.
+    #[inline(always)]
+    fn load(s: &[Vec3], i: usize) -> Self {
+        let four = &s[i..i + 4];
+        let p = four.as_ptr().cast::<v128>();
+        // SAFETY: `four` is 48 in-bounds bytes (four 12-byte `Vec3`s, checked
+        // above), read as three unaligned v128s (wasm has no alignment rule).
+        let (a, b, c) = unsafe { (v128_load(p), v128_load(p.add(1)), v128_load(p.add(2))) };
+        Self {
+            x: i32x4_shuffle::<0, 1, 2, 5>(i32x4_shuffle::<0, 3, 6, 0>(a, b), c),
+            y: i32x4_shuffle::<0, 1, 2, 6>(i32x4_shuffle::<1, 4, 7, 0>(a, b), c),
+            z: i32x4_shuffle::<0, 1, 4, 7>(i32x4_shuffle::<2, 5, 0, 0>(a, b), c),
+        }
+    }
+
+    /// Interleaves into `s[i..i + 4]` (checked).
+    #[inline(always)]
+    fn store(&self, s: &mut [Vec3], i: usize) {
+        let (x, y, z) = (self.x, self.y, self.z);
+        let a = i32x4_shuffle::<0, 1, 4, 3>(i32x4_shuffle::<0, 4, 0, 1>(x, y), z);
+        let b = i32x4_shuffle::<0, 1, 6, 3>(i32x4_shuffle::<1, 5, 0, 2>(y, z), x);
+        let c = i32x4_shuffle::<0, 1, 7, 3>(i32x4_shuffle::<2, 7, 0, 3>(z, x), y);
+        let four = &mut s[i..i + 4];
+        let p = four.as_mut_ptr().cast::<v128>();
+        // SAFETY: as in `load`, 48 in-bounds bytes, borrowed mutably.
+        unsafe {
+            v128_store(p, a);
+            v128_store(p.add(1), b);
+            v128_store(p.add(2), c);
+        }
+    }
+
+    #[inline(always)]
+    fn sub(&self, o: &Self) -> Self {
+        Self {
+            x: f32x4_sub(self.x, o.x),
+            y: f32x4_sub(self.y, o.y),
+            z: f32x4_sub(self.z, o.z),
+        }
+    }
+}
+
+/// Row `v` of [`super::back_project_into`] from column 0 in blocks of four
+/// (`depth` and `out` that row); returns the first column left for the
+/// scalar loop.
+#[inline(always)]
+pub(super) fn back_project_row(k: &Intrinsics, v: usize, depth: &[f32], out: &mut [Vec3]) -> usize {
+    let n = depth.len().min(out.len());
+    let (cx, fx, fy) = (f32x4_splat(k.cx), f32x4_splat(k.fx), f32x4_splat(k.fy));
+    let v_cy = f32x4_splat(v as f32 - k.cy);
+    let zero = f32x4_splat(0.0);
+    let mut u = 0;
+    // Column numbers as exact integers, converted per block like `u as f32`.
+    let mut columns = i32x4(0, 1, 2, 3);
+    while u + 4 <= n {
+        let lanes = &depth[u..u + 4];
+        // SAFETY: `lanes` is four in-bounds f32s; no alignment rule in wasm.
+        let d = unsafe { v128_load(lanes.as_ptr().cast::<v128>()) };
+        let valid = f32x4_gt(d, zero);
+        let u_cx = f32x4_sub(f32x4_convert_i32x4(columns), cx);
+        Xyz {
+            x: v128_and(f32x4_div(f32x4_mul(u_cx, d), fx), valid),
+            y: v128_and(f32x4_div(f32x4_mul(v_cy, d), fy), valid),
+            z: v128_and(d, valid),
+        }
+        .store(out, u);
+        columns = i32x4_add(columns, i32x4_splat(4));
+        u += 4;
+    }
+    u
+}
+
+/// Fills `out` (row `v` of the normal map, `0 < v < h - 1`) from column 0
+/// in blocks of four; returns the first column left for the scalar loop.
+#[inline(always)]
+pub(super) fn normals_row(vertices: &[Vec3], w: usize, v: usize, out: &mut [Vec3]) -> usize {
+    if w < 6 {
+        return 0;
+    }
+    let prev = &vertices[(v - 1) * w..v * w];
+    let cur = &vertices[v * w..(v + 1) * w];
+    let next = &vertices[(v + 1) * w..(v + 2) * w];
+    out[0] = Vec3::ZERO;
+    let zero = f32x4_splat(0.0);
+    let mut u = 1;
+    // The last block's right neighbours end at column w - 1.
+    while u + 5 <= w {
+        let c = Xyz::load(cur, u);
+        let (l, r) = (Xyz::load(cur, u - 1), Xyz::load(cur, u + 1));
+        let (t, b) = (Xyz::load(prev, u), Xyz::load(next, u));
+        // `c.z <= 0` leaves early (a NaN depth does not).
+        let mut keep = v128_not(f32x4_le(c.z, zero));
+        let jump = f32x4_add(f32x4_mul(f32x4_splat(0.05), c.z), f32x4_splat(0.02));
+        for p in [&l, &r, &t, &b] {
+            let far = f32x4_gt(f32x4_abs(f32x4_sub(p.z, c.z)), jump);
+            keep = v128_andnot(keep, v128_or(f32x4_le(p.z, zero), far));
+        }
+        // (r - l).cross(b - t), glam's order.
+        let (a, e) = (r.sub(&l), b.sub(&t));
+        let n = Xyz {
+            x: f32x4_sub(f32x4_mul(a.y, e.z), f32x4_mul(e.y, a.z)),
+            y: f32x4_sub(f32x4_mul(a.z, e.x), f32x4_mul(e.z, a.x)),
+            z: f32x4_sub(f32x4_mul(a.x, e.y), f32x4_mul(e.x, a.y)),
+        };
+        let len = f32x4_sqrt(dot(&n, &n));
+        let short = f32x4_le(len, f32x4_splat(1e-12));
+        let finite = f32x4_lt(f32x4_abs(len), f32x4_splat(f32::INFINITY));
+        keep = v128_and(v128_andnot(keep, short), finite);
+        let n = Xyz {
+            x: f32x4_div(n.x, len),
+            y: f32x4_div(n.y, len),
+            z: f32x4_div(n.z, len),
+        };
+        let flip = f32x4_gt(dot(&n, &c), zero);
+        let oriented = |a: v128| v128_and(v128_bitselect(f32x4_neg(a), a, flip), keep);
+        Xyz {
+            x: oriented(n.x),
+            y: oriented(n.y),
+            z: oriented(n.z),
+        }
+        .store(out, u);
+        u += 4;
+    }
+    u
+}
+
+/// glam's `Vec3::dot`: `(x * x') + (y * y') + (z * z')`, left to right.
+#[inline(always)]
+fn dot(a: &Xyz, b: &Xyz) -> v128 {
+    f32x4_add(
+        f32x4_add(f32x4_mul(a.x, b.x), f32x4_mul(a.y, b.y)),
+        f32x4_mul(a.z, b.z),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wasm_bindgen_test::wasm_bindgen_test;
+
+    /// Pseudo-random floats in `0..1`.
+    fn uniform(state: &mut u32) -> f32 {
+        *state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        (*state >> 8) as f32 / (1u32 << 24) as f32
+    }
+
+    /// A depth image with the cases the masks must get right: holes, a few
+    /// NaNs, infinities and negative depths, and jumps between surfaces.
+    fn awkward_depth(n: usize) -> Vec<f32> {
+        let mut state = 7;
+        (0..n)
+            .map(|_| match uniform(&mut state) {
+                r if r < 0.08 => 0.0,
+                r if r < 0.09 => f32::NAN,
+                r if r < 0.095 => f32::INFINITY,
+                r if r < 0.10 => -1.0,
+                r if r < 0.25 => 3.0 + r,
+                r => 1.0 + 0.01 * r,
+            })
+            .collect()
+    }
+
+    fn same_bits(a: Vec3, b: Vec3) -> bool {
+        a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)
+    }
+
+    #[wasm_bindgen_test]
+    fn back_projection_and_normals_match_the_scalar_code_bit_for_bit() {
+        let (w, h) = (39, 11);
+        let k = Intrinsics::new(52.5, 51.0, 19.25, 5.5, w, h);
+        let depth = awkward_depth(w * h);
+        let mut vertices = vec![Vec3::splat(9.0); w * h];
+        for v in 0..h {
+            let row = &mut vertices[v * w..(v + 1) * w];
+            let from = back_project_row(&k, v, &depth[v * w..(v + 1) * w], row);
+            assert_eq!(from, w - w % 4);
+            for u in 0..from {
+                let d = depth[v * w + u];
+                let expected = if d > 0.0 {
+                    k.back_project(u as f32, v as f32, d)
+                } else {
+                    Vec3::ZERO
+                };
+                assert!(
+                    same_bits(row[u], expected),
+                    "({u}, {v}): {:?} vs {expected:?}",
+                    row[u]
+                );
+            }
+            for u in from..w {
+                let d = depth[v * w + u];
+                row[u] = if d > 0.0 {
+                    k.back_project(u as f32, v as f32, d)
+                } else {
+                    Vec3::ZERO
+                };
+            }
+        }
+        let mut normals = vec![Vec3::splat(9.0); w];
+        let mut defined = 0;
+        for v in 1..h - 1 {
+            let from = normals_row(&vertices, w, v, &mut normals);
+            assert!(from + 4 >= w - 1, "row {v}: only {from} columns");
+            for u in 0..from {
+                let expected = super::super::normal_at(&vertices, w, h, u, v);
+                assert!(
+                    same_bits(normals[u], expected),
+                    "({u}, {v}): {:?} vs {expected:?}",
+                    normals[u]
+                );
+                defined += usize::from(expected != Vec3::ZERO);
+            }
+        }
+        assert!(
+            defined > 20,
+            "only {defined} defined normals: the data tests too little"
+        );
+    }
+}
