@@ -12,6 +12,9 @@ use rayon::prelude::*;
 #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
 mod simd128;
 
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+mod bilateral_simd128;
+
 /// Settings of the preprocessing stage.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PreprocessConfig {
@@ -310,6 +313,17 @@ impl BilateralRow<'_> {
             let (mut lo, mut hi) = (0, 0);
             if let (Ok(taps), true) = (<&[_; 7]>::try_from(group), interior.0 < interior.1) {
                 (lo, hi) = (interior.0 as usize, interior.1 as usize);
+                #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+                bilateral_simd128::accumulate_row_taps(
+                    row,
+                    centre,
+                    taps,
+                    self.inv_two_sigma2,
+                    (lo, hi),
+                    acc,
+                    wacc,
+                );
+                #[cfg(not(all(target_arch = "wasm32", target_feature = "simd128")))]
                 accumulate_row_taps(row, centre, taps, self.inv_two_sigma2, (lo, hi), acc, wacc);
             }
             // Columns the grouped pass did not cover (near the borders, or all).

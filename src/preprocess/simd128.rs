@@ -36,10 +36,13 @@ impl Xyz {
         // SAFETY: `four` is 48 in-bounds bytes (four 12-byte `Vec3`s, checked
         // above), read as three unaligned v128s (wasm has no alignment rule).
         let (a, b, c) = unsafe { (v128_load(p), v128_load(p.add(1)), v128_load(p.add(2))) };
+        // Shuffles taking two lanes from each input, one x64 `shufps` each in V8.
+        let x2y2x3y3 = i32x4_shuffle::<2, 3, 5, 6>(b, c);
+        let y0z0y1z1 = i32x4_shuffle::<1, 2, 4, 5>(a, b);
         Self {
-            x: i32x4_shuffle::<0, 1, 2, 5>(i32x4_shuffle::<0, 3, 6, 0>(a, b), c),
-            y: i32x4_shuffle::<0, 1, 2, 6>(i32x4_shuffle::<1, 4, 7, 0>(a, b), c),
-            z: i32x4_shuffle::<0, 1, 4, 7>(i32x4_shuffle::<2, 5, 0, 0>(a, b), c),
+            x: i32x4_shuffle::<0, 3, 4, 6>(a, x2y2x3y3),
+            y: i32x4_shuffle::<0, 2, 5, 7>(y0z0y1z1, x2y2x3y3),
+            z: i32x4_shuffle::<1, 3, 4, 7>(y0z0y1z1, c),
         }
     }
 
@@ -47,9 +50,13 @@ impl Xyz {
     #[inline(always)]
     fn store(&self, s: &mut [Vec3], i: usize) {
         let (x, y, z) = (self.x, self.y, self.z);
-        let a = i32x4_shuffle::<0, 1, 4, 3>(i32x4_shuffle::<0, 4, 0, 1>(x, y), z);
-        let b = i32x4_shuffle::<0, 1, 6, 3>(i32x4_shuffle::<1, 5, 0, 2>(y, z), x);
-        let c = i32x4_shuffle::<0, 1, 7, 3>(i32x4_shuffle::<2, 7, 0, 3>(z, x), y);
+        // As in `load`, two lanes from each input per shuffle.
+        let x0x2y0y2 = i32x4_shuffle::<0, 2, 4, 6>(x, y);
+        let z0z2x1x3 = i32x4_shuffle::<0, 2, 5, 7>(z, x);
+        let y1y3z1z3 = i32x4_shuffle::<1, 3, 5, 7>(y, z);
+        let a = i32x4_shuffle::<0, 2, 4, 6>(x0x2y0y2, z0z2x1x3);
+        let b = i32x4_shuffle::<0, 2, 5, 7>(y1y3z1z3, x0x2y0y2);
+        let c = i32x4_shuffle::<1, 3, 5, 7>(z0z2x1x3, y1y3z1z3);
         let four = &mut s[i..i + 4];
         let p = four.as_mut_ptr().cast::<v128>();
         // SAFETY: as in `load`, 48 in-bounds bytes, borrowed mutably.
