@@ -1,7 +1,7 @@
-//! Preprocessing loops over `Vec3` maps written out in wasm simd128, four
-//! pixels at a time, for the wasm module only: LLVM does not vectorise the
-//! scalar loops for wasm (they read or write `Vec3`s, three floats apart,
-//! and leave early at invalid pixels), and V8 runs them one pixel at a time.
+//! Preprocessing loops written out in wasm simd128, four pixels at a time,
+//! for the wasm module only: LLVM does not vectorise the scalar loops for
+//! wasm (they read or write `Vec3`s, three floats apart, or pixel pairs,
+//! and branch per pixel), and V8 runs them one pixel at a time.
 //!
 //! Each lane performs the scalar code's operations in the same order (glam's
 //! `cross`, `dot`, `length` and `/ f32`, and `Intrinsics::back_project`,
@@ -102,6 +102,65 @@ pub(super) fn back_project_row(k: &Intrinsics, v: usize, depth: &[f32], out: &mu
         }
         .store(out, u);
         columns = i32x4_add(columns, i32x4_splat(4));
+        u += 4;
+    }
+    u
+}
+
+/// Row `v` of [`super::downsample_depth`] (`out`, from `fine` of width `fw`)
+/// from column 0 in blocks of four; returns the first column left for the
+/// scalar loop. A block's masks follow the scalar code: the reference is the
+/// first of the 2x2 depths that is `> 0`; a depth not taken adds `+0` to the
+/// sum (which is `+0` or positive) and to the count, which changes neither.
+#[inline(always)]
+pub(super) fn downsample_depth_row(
+    fine: &[f32],
+    fw: usize,
+    v: usize,
+    gate_m: f32,
+    out: &mut [f32],
+) -> usize {
+    let top = &fine[(2 * v) * fw..(2 * v + 1) * fw];
+    let bottom = &fine[(2 * v + 1) * fw..(2 * v + 2) * fw];
+    let (zero, one, gate) = (f32x4_splat(0.0), f32x4_splat(1.0), f32x4_splat(gate_m));
+    let load = |s: &[f32], i: usize| {
+        let lanes = &s[i..i + 4];
+        // SAFETY: `lanes` is four in-bounds f32s; no alignment rule in wasm.
+        unsafe { v128_load(lanes.as_ptr().cast::<v128>()) }
+    };
+    let mut u = 0;
+    while u + 4 <= out.len() && 2 * u + 8 <= fw {
+        let (t0, t1) = (load(top, 2 * u), load(top, 2 * u + 4));
+        let (b0, b1) = (load(bottom, 2 * u), load(bottom, 2 * u + 4));
+        // The 2x2 block's depths in the scalar code's order.
+        let depths = [
+            i32x4_shuffle::<0, 2, 4, 6>(t0, t1),
+            i32x4_shuffle::<1, 3, 5, 7>(t0, t1),
+            i32x4_shuffle::<0, 2, 4, 6>(b0, b1),
+            i32x4_shuffle::<1, 3, 5, 7>(b0, b1),
+        ];
+        let valid = depths.map(|d| f32x4_gt(d, zero));
+        let reference = v128_bitselect(
+            depths[0],
+            v128_bitselect(
+                depths[1],
+                v128_bitselect(depths[2], depths[3], valid[2]),
+                valid[1],
+            ),
+            valid[0],
+        );
+        let any = v128_or(v128_or(valid[0], valid[1]), v128_or(valid[2], valid[3]));
+        let (mut sum, mut count) = (zero, zero);
+        for (d, ok) in depths.into_iter().zip(valid) {
+            let near = f32x4_lt(f32x4_abs(f32x4_sub(d, reference)), gate);
+            let taken = v128_and(ok, near);
+            sum = f32x4_add(sum, v128_and(d, taken));
+            count = f32x4_add(count, v128_and(one, taken));
+        }
+        let depth = v128_and(f32x4_div(sum, count), any);
+        let lanes = &mut out[u..u + 4];
+        // SAFETY: `lanes` is four in-bounds f32s, borrowed mutably.
+        unsafe { v128_store(lanes.as_mut_ptr().cast::<v128>(), depth) };
         u += 4;
     }
     u
@@ -241,5 +300,30 @@ mod tests {
             defined > 20,
             "only {defined} defined normals: the data tests too little"
         );
+    }
+
+    #[wasm_bindgen_test]
+    fn downsampled_depth_matches_the_scalar_code_bit_for_bit() {
+        for fw in [38, 39] {
+            let (fh, cw) = (6, fw / 2);
+            let fine = awkward_depth(fw * fh);
+            // The default gate (3 sigma), one that takes every valid depth
+            // and one that takes none (0 / 0: NaN in both).
+            for gate in [0.09, 1e9, 0.0] {
+                let mut defined = 0;
+                for v in 0..fh / 2 {
+                    let mut row = vec![9.0; cw];
+                    let from = downsample_depth_row(&fine, fw, v, gate, &mut row);
+                    assert!(from + 4 > cw, "row {v}: only {from} of {cw} columns");
+                    for (u, &got) in row.iter().enumerate().take(from) {
+                        let want = super::super::downsampled_depth_at(&fine, fw, gate, u, v);
+                        let same = got.to_bits() == want.to_bits() || got.is_nan() && want.is_nan();
+                        assert!(same, "fw {fw}, gate {gate}, ({u}, {v}): {got} vs {want}");
+                        defined += usize::from(want > 0.0);
+                    }
+                }
+                assert!(gate == 0.0 || defined > 10, "only {defined} depths tested");
+            }
+        }
     }
 }
