@@ -5,9 +5,10 @@
 // no rendering, no file reads during the run: what the module costs in
 // Chromium, to set beside the page's own figures (scripts/page-fps.mjs).
 //
-//   node scripts/chromium-bench.mjs [--threads N] [--runs R]
+//   node scripts/chromium-bench.mjs [--threads N] [--runs R] [--pkg DIR]
 // --threads 0: the single-threaded SIMD module; N >= 1: the threaded module
-// with a pool of N (default 2). Needs www/pkg built (scripts/build.sh).
+// with a pool of N (default 2). --pkg: a copy of www/pkg to measure instead
+// (to alternate two builds side by side). Needs www/pkg built (scripts/build.sh).
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -20,11 +21,13 @@ const option = (name, fallback) => {
 const threads = option('--threads', 2);
 const runs = option('--runs', 3);
 const www = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '../www');
+const pkgAt = process.argv.indexOf('--pkg');
+const pkg = pkgAt >= 0 ? path.resolve(process.argv[pkgAt + 1]) : path.join(www, 'pkg');
 
 // The bench's own page beside copies of the built module and the sample
 // (the server serves nothing from outside its root, symlinks included).
 const root = fs.mkdtempSync(path.join(os.tmpdir(), 'surfel-slam-bench-'));
-fs.cpSync(path.join(www, 'pkg'), path.join(root, 'pkg'), { recursive: true });
+fs.cpSync(pkg, path.join(root, 'pkg'), { recursive: true });
 fs.cpSync(path.join(www, 'sample'), path.join(root, 'sample'), { recursive: true });
 fs.writeFileSync(path.join(root, 'index.html'), `<!doctype html><meta charset="utf-8"><script type="module">
 const worker = new Worker('bench-worker.js', { type: 'module' });

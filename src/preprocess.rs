@@ -9,6 +9,12 @@ use crate::frame::RgbdFrame;
 use glam::Vec3;
 use rayon::prelude::*;
 
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+mod simd128;
+
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+mod bilateral_simd128;
+
 /// Settings of the preprocessing stage.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PreprocessConfig {
@@ -225,7 +231,12 @@ pub fn back_project_into(k: &Intrinsics, depth: &[f32], out: &mut [Vec3]) {
         .zip(depth.par_chunks(w))
         .enumerate()
         .for_each(|(v, (out_row, d_row))| {
-            for (u, (o, &d)) in out_row.iter_mut().zip(d_row).enumerate() {
+            // The wasm module does four pixels at a time up to `from`.
+            #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+            let from = simd128::back_project_row(k, v, d_row, out_row);
+            #[cfg(not(all(target_arch = "wasm32", target_feature = "simd128")))]
+            let from = 0;
+            for (u, (o, &d)) in out_row.iter_mut().zip(d_row).enumerate().skip(from) {
                 *o = if d > 0.0 {
                     k.back_project(u as f32, v as f32, d)
                 } else {
@@ -302,6 +313,17 @@ impl BilateralRow<'_> {
             let (mut lo, mut hi) = (0, 0);
             if let (Ok(taps), true) = (<&[_; 7]>::try_from(group), interior.0 < interior.1) {
                 (lo, hi) = (interior.0 as usize, interior.1 as usize);
+                #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+                bilateral_simd128::accumulate_row_taps(
+                    row,
+                    centre,
+                    taps,
+                    self.inv_two_sigma2,
+                    (lo, hi),
+                    acc,
+                    wacc,
+                );
+                #[cfg(not(all(target_arch = "wasm32", target_feature = "simd128")))]
                 accumulate_row_taps(row, centre, taps, self.inv_two_sigma2, (lo, hi), acc, wacc);
             }
             // Columns the grouped pass did not cover (near the borders, or all).
@@ -426,30 +448,41 @@ fn normalise(acc: &mut [f32], wacc: &[f32], centre: &[f32]) {
 /// 2x2 block average of the depths close to the block's first valid depth.
 fn downsample_depth(fine: &[f32], fw: usize, coarse: &mut [f32], cw: usize, gate_m: f32) {
     coarse.par_chunks_mut(cw).enumerate().for_each(|(v, row)| {
-        for (u, o) in row.iter_mut().enumerate() {
-            let idx = [
-                (2 * v) * fw + 2 * u,
-                (2 * v) * fw + 2 * u + 1,
-                (2 * v + 1) * fw + 2 * u,
-                (2 * v + 1) * fw + 2 * u + 1,
-            ];
-            let reference = idx.iter().map(|&i| fine[i]).find(|&d| d > 0.0);
-            *o = match reference {
-                None => 0.0,
-                Some(r) => {
-                    let (mut s, mut n) = (0.0, 0.0);
-                    for &i in &idx {
-                        let d = fine[i];
-                        if d > 0.0 && (d - r).abs() < gate_m {
-                            s += d;
-                            n += 1.0;
-                        }
-                    }
-                    s / n
-                }
-            };
+        // The wasm module does four pixels at a time up to `from`.
+        #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+        let from = simd128::downsample_depth_row(fine, fw, v, gate_m, row);
+        #[cfg(not(all(target_arch = "wasm32", target_feature = "simd128")))]
+        let from = 0;
+        for (u, o) in row.iter_mut().enumerate().skip(from) {
+            *o = downsampled_depth_at(fine, fw, gate_m, u, v);
         }
     });
+}
+
+/// Coarse pixel `(u, v)` of [`downsample_depth`].
+#[inline(always)]
+fn downsampled_depth_at(fine: &[f32], fw: usize, gate_m: f32, u: usize, v: usize) -> f32 {
+    let idx = [
+        (2 * v) * fw + 2 * u,
+        (2 * v) * fw + 2 * u + 1,
+        (2 * v + 1) * fw + 2 * u,
+        (2 * v + 1) * fw + 2 * u + 1,
+    ];
+    let reference = idx.iter().map(|&i| fine[i]).find(|&d| d > 0.0);
+    match reference {
+        None => 0.0,
+        Some(r) => {
+            let (mut s, mut n) = (0.0, 0.0);
+            for &i in &idx {
+                let d = fine[i];
+                if d > 0.0 && (d - r).abs() < gate_m {
+                    s += d;
+                    n += 1.0;
+                }
+            }
+            s / n
+        }
+    }
 }
 
 fn downsample_mean(fine: &[f32], fw: usize, coarse: &mut [f32], cw: usize) {
@@ -470,35 +503,53 @@ fn downsample_mean(fine: &[f32], fw: usize, coarse: &mut [f32], cw: usize) {
 pub fn normals_into(vertices: &[Vec3], w: usize, out: &mut [Vec3]) {
     let h = vertices.len() / w;
     out.par_chunks_mut(w).enumerate().for_each(|(v, row)| {
-        for (u, o) in row.iter_mut().enumerate() {
-            *o = Vec3::ZERO;
-            if u == 0 || v == 0 || u + 1 >= w || v + 1 >= h {
-                continue;
-            }
-            let c = vertices[v * w + u];
-            if c.z <= 0.0 {
-                continue;
-            }
-            let l = vertices[v * w + u - 1];
-            let r = vertices[v * w + u + 1];
-            let t = vertices[(v - 1) * w + u];
-            let b = vertices[(v + 1) * w + u];
-            let jump = 0.05 * c.z + 0.02;
-            if [l, r, t, b]
-                .iter()
-                .any(|p| p.z <= 0.0 || (p.z - c.z).abs() > jump)
-            {
-                continue;
-            }
-            let n = (r - l).cross(b - t);
-            let len = n.length();
-            if len <= 1e-12 || !len.is_finite() {
-                continue;
-            }
-            let n = n / len;
-            *o = if n.dot(c) > 0.0 { -n } else { n };
+        // The wasm module does the interior four pixels at a time up to `from`.
+        #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+        let from = if v > 0 && v + 1 < h {
+            simd128::normals_row(vertices, w, v, row)
+        } else {
+            0
+        };
+        #[cfg(not(all(target_arch = "wasm32", target_feature = "simd128")))]
+        let from = 0;
+        for (u, o) in row.iter_mut().enumerate().skip(from) {
+            *o = normal_at(vertices, w, h, u, v);
         }
     });
+}
+
+/// The normal of pixel `(u, v)` for [`normals_into`].
+#[inline(always)]
+fn normal_at(vertices: &[Vec3], w: usize, h: usize, u: usize, v: usize) -> Vec3 {
+    if u == 0 || v == 0 || u + 1 >= w || v + 1 >= h {
+        return Vec3::ZERO;
+    }
+    let c = vertices[v * w + u];
+    if c.z <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let l = vertices[v * w + u - 1];
+    let r = vertices[v * w + u + 1];
+    let t = vertices[(v - 1) * w + u];
+    let b = vertices[(v + 1) * w + u];
+    let jump = 0.05 * c.z + 0.02;
+    if [l, r, t, b]
+        .iter()
+        .any(|p| p.z <= 0.0 || (p.z - c.z).abs() > jump)
+    {
+        return Vec3::ZERO;
+    }
+    let n = (r - l).cross(b - t);
+    let len = n.length();
+    if len <= 1e-12 || !len.is_finite() {
+        return Vec3::ZERO;
+    }
+    let n = n / len;
+    if n.dot(c) > 0.0 {
+        -n
+    } else {
+        n
+    }
 }
 
 #[cfg(test)]
