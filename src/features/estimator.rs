@@ -2,6 +2,7 @@
 //! later frames from matched features, detected only when asked for.
 
 use glam::{DAffine3, Vec3};
+use rayon::prelude::*;
 
 use super::{
     check_frame_size, match_features_into, ransac_rigid, Feature, FeatureConfig, FeatureError,
@@ -20,6 +21,20 @@ pub struct SparseEstimate {
     pub matches: usize,
     /// RMS 3D distance of the inliers, metres.
     pub rms_m: f64,
+}
+
+/// Makes `dst` a copy of `src`, in parallel: at 640x480 a frame's colour
+/// and points are 4.6 MB, copied every frame, and a serial copy left one
+/// core idle for it.
+fn copy_in_parallel<T: Copy + Default + Send + Sync>(src: &[T], dst: &mut Vec<T>) {
+    const PIECE: usize = 1 << 14;
+    if dst.len() != src.len() {
+        dst.clear();
+        dst.resize(src.len(), T::default());
+    }
+    dst.par_chunks_mut(PIECE)
+        .zip(src.par_chunks(PIECE))
+        .for_each(|(d, s)| d.copy_from_slice(s));
 }
 
 /// A frame held by [`SparseEstimator`]: colour and points as given (a plain
@@ -54,10 +69,8 @@ impl HeldFrame {
         self.detected = false;
         self.features.clear();
         check_frame_size(rgb, vertices, width, height)?;
-        self.rgb.clear();
-        self.rgb.extend_from_slice(rgb);
-        self.vertices.clear();
-        self.vertices.extend_from_slice(vertices);
+        copy_in_parallel(rgb, &mut self.rgb);
+        copy_in_parallel(vertices, &mut self.vertices);
         (self.width, self.height) = (width, height);
         // A frame smaller than one block at the feature level has nothing
         // to match (an empty prepared frame counted as none before).

@@ -64,9 +64,9 @@ pub struct Integrator {
     chunks: Vec<ChunkUpdate>,
     /// Per surfel: the pixel it is a candidate of this frame, or `NO_PIXEL`.
     pixels: Vec<u32>,
-    /// Per image row: the pixels (row-major indices) that add a new
-    /// surfel, in pixel order, with their sensor-noise weights.
-    adds: Vec<Vec<(u32, f32)>>,
+    /// Per image row: the new surfels its pixels add, in pixel order
+    /// (world frame, metres; confidence the radial weight).
+    adds: Vec<Vec<Surfel>>,
     /// Radial confidence weight per column and per row (it is separable).
     weight_u: Vec<f32>,
     weight_v: Vec<f32>,
@@ -163,8 +163,10 @@ impl MergeBatch {
             .zip(&self.noise_weights)
             .take(n)
         {
-            let m = measure.surfel(pixel, noise_weight);
-            let p = merge(chunk, local, &m, measure.gain(pixel));
+            let gain = measure.gain(pixel);
+            // The noise weight sets the measurement's share in the merge.
+            let m = measure.surfel(pixel, gain * noise_weight);
+            let p = merge(chunk, local, &m, gain);
             let block = local / BLOCK;
             update.min[block] = update.min[block].min(p);
             update.max[block] = update.max[block].max(p);
@@ -444,7 +446,6 @@ impl Integrator {
         stats: &mut FusionStats,
     ) {
         let measure = Measure::new(view, (&self.weight_u, &self.weight_v), config);
-        let noise = NoiseWeights::new(view.level0, view.k, config);
         let cos_gate = libm::cosf(config.normal_gate_deg.to_radians());
         let (level0, best) = (view.level0, &self.best);
         let (w, h) = (view.k.width, view.k.height);
@@ -483,34 +484,23 @@ impl Integrator {
                     ) {
                         covered += 1;
                     } else {
-                        row.push((i as u32, noise.at(i)));
+                        // A new surfel's confidence is the radial weight
+                        // alone: the noise weight only sets a merge's share.
+                        row.push(measure.surfel(i, measure.gain(i)));
                     }
                 }
                 covered
             })
             .sum();
         // Appended in pixel order: the same map on any thread count.
-        let mut ahead = self.adds.iter().flatten().skip(AHEAD);
-        for &(i, noise_weight) in self.adds.iter().flatten() {
-            if let Some(&(a, _)) = ahead.next() {
-                prefetch_measurement(best, view, a as usize);
-            }
-            if map.len() >= config.max_surfels {
-                stats.skipped += 1;
-                continue;
-            }
-            let i = i as usize;
-            let m = measure.surfel(i, noise_weight);
-            map.push(
-                m.position,
-                m.normal,
-                m.colour,
-                m.radius,
-                measure.gain(i),
-                view.frame,
-            );
-            stats.added += 1;
-        }
+        let wanted: usize = self.adds.iter().map(Vec::len).sum();
+        let room = config.max_surfels.saturating_sub(map.len());
+        stats.added = wanted.min(room);
+        stats.skipped = wanted - stats.added;
+        map.extend(
+            self.adds.iter().flatten().take(stats.added),
+            view.frame,
+        );
     }
 }
 
@@ -546,10 +536,8 @@ impl<'a> Measure<'a> {
     }
 
     /// The surfel pixel `i` (row-major) measures: world frame, metres, with
-    /// the radial confidence weight times `noise_weight` (the pixel's
-    /// [`NoiseWeights::at`]).
-    fn surfel(&self, i: usize, noise_weight: f32) -> Surfel {
-        let w = self.view.k.width;
+    /// confidence `confidence`.
+    fn surfel(&self, i: usize, confidence: f32) -> Surfel {
         let p = self.view.level0.vertices[i];
         let n_cam = self.view.level0.normals[i];
         let radius = (std::f32::consts::SQRT_2 * p.z / self.focal / n_cam.z.abs().max(0.25))
@@ -560,7 +548,7 @@ impl<'a> Measure<'a> {
             normal: self.view.world_from_camera.vector(n_cam),
             colour: [c[0], c[1], c[2], 255],
             radius,
-            confidence: self.weight_u[i % w] * self.weight_v[i / w] * noise_weight,
+            confidence,
         }
     }
 }

@@ -54,7 +54,10 @@ impl<'a> NoiseWeights<'a> {
     /// measurement's share in a merge, so far, oblique and edge pixels move a
     /// surfel seen better before by little; the confidence a merge adds is the
     /// radial weight alone (see `FusionConfig::noise`).
-    #[inline]
+    ///
+    /// Only merges read it, through [`Self::at_each_into`], which tests
+    /// check against this definition.
+    #[cfg(test)]
     pub(super) fn at(&self, i: usize) -> f32 {
         if !self.weighted {
             return 1.0;

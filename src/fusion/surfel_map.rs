@@ -392,6 +392,28 @@ impl SurfelMap {
         self.mark_changed(i);
     }
 
+    /// Appends `surfels` (world frame, metres) in order, created at frame
+    /// `frame`, as [`SurfelMap::push`] does one at a time.
+    pub fn extend<'a>(&mut self, surfels: impl Iterator<Item = &'a Surfel> + Clone, frame: u32) {
+        let n = surfels.clone().count();
+        let first = self.len();
+        self.positions.extend(surfels.clone().map(|s| s.position));
+        self.normals.extend(surfels.clone().map(|s| s.normal));
+        self.colours.extend(surfels.clone().map(|s| s.colour));
+        self.radii.extend(surfels.clone().map(|s| s.radius));
+        self.confidences.extend(surfels.clone().map(|s| s.confidence));
+        self.first_seen.extend(std::iter::repeat_n(frame, n));
+        self.last_seen.extend(std::iter::repeat_n(frame, n));
+        for (i, s) in (first..).zip(surfels) {
+            self.bounds.grow(i, s.position);
+            self.bounds.saw(i, frame);
+        }
+        if n > 0 {
+            self.mark_changed(first);
+            self.mark_changed(first + n - 1);
+        }
+    }
+
     /// Calls `f` in parallel on every chunk (see [`ChunkMut`]) with the
     /// matching item of `per_chunk` (chunks past its length are skipped).
     /// The caller must report moved surfels with [`SurfelMap::grow_bounds`]

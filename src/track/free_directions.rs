@@ -52,6 +52,7 @@ use crate::preprocess::{normals_into, PyramidLevel};
 use crate::se3::NormalEquations;
 use crate::se3::RigidF32;
 use glam::Vec3;
+use rayon::prelude::*;
 
 /// Columns of the grid the geometry is measured on.
 pub const GRID_COLUMNS: usize = 80;
@@ -91,6 +92,8 @@ pub struct GridWorkspace {
     shape: (usize, usize),
     /// Squared normal differences the noise floors are the median of.
     differences: Vec<f64>,
+    /// Per sampled model row: the grid cells its correspondences fall in.
+    hits: Vec<Vec<u32>>,
 }
 
 /// Full-resolution pixels sampled by the confirmation, every this many
@@ -297,10 +300,14 @@ fn count_correspondences(
     gates: &IcpGates,
     grid: &mut GridWorkspace,
 ) {
-    grid.counts.clear();
-    grid.counts.resize(grid.vertices.len(), 0);
     let height = grid.vertices.len() / width.max(1);
-    for v in (0..mk.height).step_by(2) {
+    let (vertices, normals) = (&grid.vertices, &grid.normals);
+    // The sampled model rows are projected in parallel, each listing the
+    // cells it counts in; the counts are then added up in row order.
+    grid.hits.resize_with(mk.height.div_ceil(2), Vec::new);
+    grid.hits.par_iter_mut().enumerate().for_each(|(r, hits)| {
+        hits.clear();
+        let v = 2 * r;
         for u in (0..mk.width).step_by(2) {
             let i = v * mk.width + u;
             let (Some(&normal), Some(&vertex)) = (model.normals.get(i), model.vertices.get(i))
@@ -322,11 +329,16 @@ fn count_correspondences(
                 continue;
             }
             let g = gv * width + gu;
-            let (q, n) = (grid.vertices[g], grid.normals[g]);
+            let (q, n) = (vertices[g], normals[g]);
             if n != Vec3::ZERO && (p - q).length() <= gates.distance_gate_m {
-                grid.counts[g] += 1;
+                hits.push(g as u32);
             }
         }
+    });
+    grid.counts.clear();
+    grid.counts.resize(grid.vertices.len(), 0);
+    for &g in grid.hits.iter().flatten() {
+        grid.counts[g as usize] += 1;
     }
 }
 
