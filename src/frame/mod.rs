@@ -127,11 +127,20 @@ impl RgbdFrame {
                 expected: 3 * n,
             });
         }
-        match self
+        let invalid = |d: &f32| !(d.is_finite() && *d >= 0.0);
+        // Whole pieces tested without an early exit, so the test vectorises
+        // (a per-pixel search took 0.5 ms a frame); the pixel is then found
+        // in the first bad piece.
+        const PIECE: usize = 64;
+        let bad_piece = self
             .depth_m
-            .iter()
-            .position(|d| !(d.is_finite() && *d >= 0.0))
-        {
+            .chunks(PIECE)
+            .position(|piece| piece.iter().fold(false, |bad, d| bad | invalid(d)));
+        let pixel = bad_piece.and_then(|p| {
+            let first = p * PIECE;
+            self.depth_m[first..].iter().position(invalid).map(|i| first + i)
+        });
+        match pixel {
             Some(pixel) => Err(FrameError::InvalidDepth {
                 pixel,
                 value: self.depth_m[pixel],
@@ -187,6 +196,34 @@ impl RgbdFrame {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn validation_names_the_first_invalid_depth_wherever_it_lies() {
+        let (width, height) = (50, 7);
+        let n = width * height;
+        let clean = RgbdFrame {
+            width,
+            height,
+            rgb: vec![0; 3 * n],
+            depth_m: vec![1.5; n],
+        };
+        assert!(clean.validate().is_ok());
+        // Around the boundaries of the pieces the scan tests whole, and the ends.
+        for first in [0, 1, 63, 64, 65, 127, 128, n - 2, n - 1] {
+            for bad in [f32::NAN, f32::INFINITY, -0.5] {
+                let mut frame = clean.clone();
+                frame.depth_m[first] = bad;
+                // A second bad pixel later must not be the one named.
+                frame.depth_m[n - 1] = f32::NEG_INFINITY;
+                match frame.validate() {
+                    Err(FrameError::InvalidDepth { pixel, .. }) => {
+                        assert_eq!(pixel, first, "value {bad}");
+                    }
+                    other => panic!("pixel {first}, value {bad}: {other:?}"),
+                }
+            }
+        }
+    }
 
     #[test]
     fn depth_thumbnail_takes_the_pixel_under_each_centre() {

@@ -83,8 +83,9 @@ struct ChunkUpdate {
     /// positions, world frame, metres.
     min: [Vec3; BLOCKS_PER_CHUNK],
     max: [Vec3; BLOCKS_PER_CHUNK],
-    /// Candidates that lost their pixel to a more confident surfel.
-    losers: Vec<u32>,
+    /// Candidates that lost their pixel to a more confident surfel, each
+    /// with that surfel: `(loser, winner)`, map indices.
+    losers: Vec<(u32, u32)>,
 }
 
 impl ChunkUpdate {
@@ -240,8 +241,7 @@ impl Integrator {
             merged: self.merge_winners(map, &view, config),
             ..FusionStats::default()
         };
-        stats.absorbed =
-            absorb_redundant(&mut self.chunks, (&self.best, &self.pixels), map, config);
+        stats.absorbed = absorb_redundant(&mut self.chunks, map, config);
         stats.visited = self.visible.iter().map(ExactSizeIterator::len).sum();
         self.add_uncovered(map, &view, config, &mut stats);
         stats
@@ -404,8 +404,12 @@ impl Integrator {
                 if pixel == NO_PIXEL {
                     continue;
                 }
-                if best[pixel as usize].load(Ordering::Relaxed) & 0xffff_ffff != j as u64 + 1 {
-                    update.losers.push(j as u32);
+                let key = best[pixel as usize].load(Ordering::Relaxed) & 0xffff_ffff;
+                if key != j as u64 + 1 {
+                    // A candidate's pixel has a winner: its key is at least the candidate's.
+                    if let Some(b) = key.checked_sub(1) {
+                        update.losers.push((j as u32, b as u32));
+                    }
                     continue;
                 }
                 update.merged += 1;
@@ -559,17 +563,8 @@ impl<'a> Measure<'a> {
 /// Without this, duplicates win the pixel now and then as the camera
 /// moves, become stable, and the map grows on every revisit
 /// (`docs/performance.md#absorb-redundant`).
-fn absorb_redundant(
-    chunks: &mut [ChunkUpdate],
-    (best, pixels): (&[AtomicU64], &[u32]),
-    map: &mut SurfelMap,
-    config: &FusionConfig,
-) -> usize {
+fn absorb_redundant(chunks: &mut [ChunkUpdate], map: &mut SurfelMap, config: &FusionConfig) -> usize {
     let cos_gate = libm::cosf(config.normal_gate_deg.to_radians());
-    let winner = |j: usize| {
-        let key = best[pixels[j] as usize].load(Ordering::Relaxed) & 0xffff_ffff;
-        (key as usize).checked_sub(1)
-    };
     let on_disk = |map: &SurfelMap, b: usize, j: usize| {
         map.normals[b].dot(map.normals[j]) >= cos_gate
             && (map.positions[b] - map.positions[j]).length() < map.radii[b]
@@ -580,15 +575,21 @@ fn absorb_redundant(
     let map_ref = &*map;
     chunks.par_iter_mut().for_each(|c| {
         c.losers
-            .retain(|&j| winner(j as usize).is_some_and(|b| on_disk(map_ref, b, j as usize)));
+            .retain(|&(j, b)| on_disk(map_ref, b as usize, j as usize));
     });
     let mut absorbed = 0;
-    for &j in chunks.iter().flat_map(|c| &c.losers) {
-        let j = j as usize;
+    let mut ahead = chunks.iter().flat_map(|c| &c.losers).skip(ABSORB_AHEAD);
+    for &(j, b) in chunks.iter().flat_map(|c| &c.losers) {
+        // Both surfels are read at random: start the reads of a later pair.
+        if let Some(&(aj, ab)) = ahead.next() {
+            map.prefetch(aj as usize);
+            map.prefetch(ab as usize);
+        }
+        let (j, b) = (j as usize, b as usize);
         // Checked again: an earlier merge may have moved the winner.
-        let Some(b) = winner(j).filter(|&b| on_disk(map, b, j)) else {
+        if !on_disk(map, b, j) {
             continue;
-        };
+        }
         if !config.is_settled(map.confidences[b]) {
             let merged = map.surfel(b).merged_with(&map.surfel(j));
             map.set_surfel(b, &merged);
@@ -599,6 +600,9 @@ fn absorb_redundant(
     }
     absorbed
 }
+
+/// How many pairs ahead [`absorb_redundant`]'s serial merges hint the caches.
+const ABSORB_AHEAD: usize = 8;
 
 /// Confidence that marks a surfel merged into another one: it is no
 /// candidate, never predicted, and removed at the next cleanup.

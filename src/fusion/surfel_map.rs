@@ -6,6 +6,7 @@
 
 use super::chunk_bounds::{ChunkBounds, CHUNK};
 use super::ABSORBED;
+use crate::prefetch::prefetch;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -229,6 +230,15 @@ impl SurfelMap {
             radius: self.radii[i],
             confidence: self.confidences[i],
         }
+    }
+
+    /// Hints the caches to fetch what [`SurfelMap::surfel`] reads of surfel `i`.
+    pub(in crate::fusion) fn prefetch(&self, i: usize) {
+        prefetch(&self.positions, i);
+        prefetch(&self.normals, i);
+        prefetch(&self.colours, i);
+        prefetch(&self.radii, i);
+        prefetch(&self.confidences, i);
     }
 
     /// Overwrites the values of surfel `i` (not its frames); the caller
