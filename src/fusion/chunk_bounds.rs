@@ -17,6 +17,7 @@
 //! conservative for "may hold a surfel seen before frame f".
 
 use glam::Vec3;
+use rayon::prelude::*;
 use std::ops::Range;
 
 /// Surfels per chunk, the unit of parallel updates.
@@ -115,18 +116,62 @@ impl ChunkBounds {
         self.oldest[c] = self.oldest[c].min(frame);
     }
 
+    /// Extends the boxes and frame ranges of the blocks of the surfels
+    /// `first..first + positions.len()` to hold `positions`, all updated at
+    /// frame `frame`: [`Self::grow`] and [`Self::saw`] of each, a block at a time.
+    pub fn grow_all(&mut self, first: usize, positions: &[Vec3], frame: u32) {
+        let (mut i, mut rest) = (first, positions);
+        while !rest.is_empty() {
+            let (piece, tail) = rest.split_at((BLOCK - i % BLOCK).min(rest.len()));
+            let c = self.ensure(i);
+            (self.min[c], self.max[c]) = piece
+                .iter()
+                .fold((self.min[c], self.max[c]), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+            self.newest[c] = self.newest[c].max(frame);
+            self.oldest[c] = self.oldest[c].min(frame);
+            (i, rest) = (i + piece.len(), tail);
+        }
+    }
+
     /// Recomputes the boxes and frame ranges of every block from the one
     /// holding surfel `first` on, after the surfels from `first` on were
-    /// moved or removed; `positions` and `last_seen` are the map's arrays.
+    /// moved or removed; `positions` and `last_seen` are the map's arrays
+    /// (of one length). The blocks are summed up in parallel.
     pub fn rebuild_from(&mut self, positions: &[Vec3], last_seen: &[u32], first: usize) {
         let c0 = first / BLOCK;
         self.min.truncate(c0);
         self.max.truncate(c0);
         self.newest.truncate(c0);
         self.oldest.truncate(c0);
-        for (i, (&p, &f)) in positions.iter().zip(last_seen).enumerate().skip(c0 * BLOCK) {
-            self.grow(i, p);
-            self.saw(i, f);
+        if c0 > 0 {
+            // The blocks before `first`'s are kept; they exist even if
+            // no surfel ever grew the last of them.
+            self.ensure(c0 * BLOCK - 1);
+        }
+        let start = (c0 * BLOCK).min(positions.len()).min(last_seen.len());
+        let blocks: Vec<BlockBox> = positions[start..]
+            .par_chunks(BLOCK)
+            .zip(last_seen[start..].par_chunks(BLOCK))
+            .map(|(positions, frames)| {
+                let empty = BlockBox {
+                    min: Vec3::splat(f32::INFINITY),
+                    max: Vec3::splat(f32::NEG_INFINITY),
+                    newest: 0,
+                    oldest: u32::MAX,
+                };
+                positions.iter().zip(frames).fold(empty, |b, (&p, &f)| BlockBox {
+                    min: b.min.min(p),
+                    max: b.max.max(p),
+                    newest: b.newest.max(f),
+                    oldest: b.oldest.min(f),
+                })
+            })
+            .collect();
+        for b in blocks {
+            self.min.push(b.min);
+            self.max.push(b.max);
+            self.newest.push(b.newest);
+            self.oldest.push(b.oldest);
         }
     }
 

@@ -50,6 +50,21 @@ impl Surfel {
     }
 }
 
+/// Keeps the items of `values` before `start` and those from `start` on
+/// whose flag in `kept` (one per item from `start`) is true, in order;
+/// returns the new length.
+fn compact<T: Copy>(values: &mut Vec<T>, start: usize, kept: &[bool]) -> usize {
+    let mut write = start;
+    for (read, &k) in (start..values.len()).zip(kept) {
+        if k {
+            values[write] = values[read];
+            write += 1;
+        }
+    }
+    values.truncate(write);
+    write
+}
+
 /// Mutable view of one chunk of surfels (`CHUNK` consecutive indices), for
 /// updating disjoint parts of the map in parallel.
 pub struct ChunkMut<'a> {
@@ -414,10 +429,7 @@ impl SurfelMap {
         self.confidences.extend(surfels.clone().map(|s| s.confidence));
         self.first_seen.extend(std::iter::repeat_n(frame, n));
         self.last_seen.extend(std::iter::repeat_n(frame, n));
-        for (i, s) in (first..).zip(surfels) {
-            self.bounds.grow(i, s.position);
-            self.bounds.saw(i, frame);
-        }
+        self.bounds.grow_all(first, &self.positions[first..], frame);
         if n > 0 {
             self.mark_changed(first);
             self.mark_changed(first + n - 1);
@@ -533,54 +545,44 @@ impl SurfelMap {
     }
 
     /// Keeps every surfel before `start` and, from `start` on, those for
-    /// which `keep(map, i)` is true, preserving order; `keep` reads surfel
-    /// `i` from `map` before anything at or after `i` was moved. Costs
-    /// O(len - start).
+    /// which `keep(map, i)` is true, preserving order; `keep` reads the map
+    /// as it was (every surfel is judged before any moves). Costs
+    /// O(len - start); the judging and each array's compaction run in parallel.
     pub(in crate::fusion) fn retain_from(
         &mut self,
         start: usize,
-        mut keep: impl FnMut(&SurfelMap, usize) -> bool,
+        keep: impl Fn(&SurfelMap, usize) -> bool + Sync,
     ) {
         let len = self.len();
         let start = start.min(len);
-        let mut write = start;
-        let mut first_removed = None;
-        let mut absorbed_removed = 0;
-        for read in start..len {
-            if !keep(self, read) {
-                first_removed.get_or_insert(read);
-                absorbed_removed += usize::from(self.confidences[read] < 0.0);
-                continue;
-            }
-            if write != read {
-                self.positions[write] = self.positions[read];
-                self.normals[write] = self.normals[read];
-                self.colours[write] = self.colours[read];
-                self.radii[write] = self.radii[read];
-                self.confidences[write] = self.confidences[read];
-                self.first_seen[write] = self.first_seen[read];
-                self.last_seen[write] = self.last_seen[read];
-            }
-            write += 1;
-        }
-        if let Some(first) = first_removed {
-            // Every slot from the first removed one on now holds another surfel.
-            self.mark_changed(first);
-            self.mark_changed(len.saturating_sub(1));
-        }
-        let first_removed = first_removed.unwrap_or(write);
+        let map = &*self;
+        let kept: Vec<bool> = (start..len).into_par_iter().map(|i| keep(map, i)).collect();
+        let Some(first_removed) = kept.iter().position(|&k| !k).map(|i| start + i) else {
+            return;
+        };
+        let absorbed_removed = kept
+            .iter()
+            .zip(&self.confidences[start..])
+            .filter(|&(&k, &c)| !k && c < 0.0)
+            .count();
+        let kept = &kept;
+        let mut write = 0;
+        rayon::scope(|s| {
+            s.spawn(|_| write = compact(&mut self.positions, start, kept));
+            s.spawn(|_| _ = compact(&mut self.normals, start, kept));
+            s.spawn(|_| _ = compact(&mut self.colours, start, kept));
+            s.spawn(|_| _ = compact(&mut self.radii, start, kept));
+            s.spawn(|_| _ = compact(&mut self.confidences, start, kept));
+            s.spawn(|_| _ = compact(&mut self.first_seen, start, kept));
+            s.spawn(|_| _ = compact(&mut self.last_seen, start, kept));
+        });
+        // Every slot from the first removed one on now holds another surfel.
+        self.mark_changed(first_removed);
+        self.mark_changed(len.saturating_sub(1));
         self.absorbed = self.absorbed.saturating_sub(absorbed_removed);
-        self.positions.truncate(write);
-        self.normals.truncate(write);
-        self.colours.truncate(write);
-        self.radii.truncate(write);
-        self.confidences.truncate(write);
-        self.first_seen.truncate(write);
-        self.last_seen.truncate(write);
-        if first_removed < len {
-            self.bounds
-                .rebuild_from(&self.positions, &self.last_seen, first_removed);
-        }
+        debug_assert_eq!(write, self.len());
+        self.bounds
+            .rebuild_from(&self.positions, &self.last_seen, first_removed);
     }
 
     /// True when every stored value is finite (no NaN or infinity anywhere).

@@ -36,17 +36,18 @@ impl ModelPoints {
     pub fn gather_from(&mut self, prediction: &Prediction) {
         self.intrinsics = None;
         self.row_starts.clear();
-        self.vertices.clear();
-        self.normals.clear();
-        self.columns.clear();
-        let Some(k) = prediction.intrinsics else {
+        let usable = prediction.intrinsics.filter(|k| {
+            let n = k.width * k.height;
+            k.width > 0 && prediction.normals.len() >= n && prediction.vertices.len() >= n
+        });
+        let Some(k) = usable else {
+            self.vertices.clear();
+            self.normals.clear();
+            self.columns.clear();
             return;
         };
         let (w, h) = (k.width, k.height);
         let n = w * h;
-        if w == 0 || prediction.normals.len() < n || prediction.vertices.len() < n {
-            return;
-        }
         self.intrinsics = Some(k);
         let (vertices, normals) = (&prediction.vertices[..n], &prediction.normals[..n]);
         self.row_starts.resize(h + 1, 0);
@@ -58,6 +59,8 @@ impl ModelPoints {
             self.row_starts[v + 1] += self.row_starts[v];
         }
         let total = self.row_starts[h];
+        // Every slot is written below: resized, not cleared, so that only
+        // slots beyond the last frame's count are zeroed first.
         self.vertices.resize(total, Vec3::ZERO);
         self.normals.resize(total, Vec3::ZERO);
         self.columns.resize(total, 0);
