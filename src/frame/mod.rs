@@ -138,7 +138,10 @@ impl RgbdFrame {
             .position(|piece| piece.iter().fold(false, |bad, d| bad | invalid(d)));
         let pixel = bad_piece.and_then(|p| {
             let first = p * PIECE;
-            self.depth_m[first..].iter().position(invalid).map(|i| first + i)
+            self.depth_m[first..]
+                .iter()
+                .position(invalid)
+                .map(|i| first + i)
         });
         match pixel {
             Some(pixel) => Err(FrameError::InvalidDepth {

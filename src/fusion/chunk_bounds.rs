@@ -126,7 +126,9 @@ impl ChunkBounds {
             let c = self.ensure(i);
             (self.min[c], self.max[c]) = piece
                 .iter()
-                .fold((self.min[c], self.max[c]), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+                .fold((self.min[c], self.max[c]), |(lo, hi), &p| {
+                    (lo.min(p), hi.max(p))
+                });
             self.newest[c] = self.newest[c].max(frame);
             self.oldest[c] = self.oldest[c].min(frame);
             (i, rest) = (i + piece.len(), tail);
@@ -159,12 +161,15 @@ impl ChunkBounds {
                     newest: 0,
                     oldest: u32::MAX,
                 };
-                positions.iter().zip(frames).fold(empty, |b, (&p, &f)| BlockBox {
-                    min: b.min.min(p),
-                    max: b.max.max(p),
-                    newest: b.newest.max(f),
-                    oldest: b.oldest.min(f),
-                })
+                positions
+                    .iter()
+                    .zip(frames)
+                    .fold(empty, |b, (&p, &f)| BlockBox {
+                        min: b.min.min(p),
+                        max: b.max.max(p),
+                        newest: b.newest.max(f),
+                        oldest: b.oldest.min(f),
+                    })
             })
             .collect();
         for b in blocks {

@@ -501,10 +501,7 @@ impl Integrator {
         let room = config.max_surfels.saturating_sub(map.len());
         stats.added = wanted.min(room);
         stats.skipped = wanted - stats.added;
-        map.extend(
-            self.adds.iter().flatten().take(stats.added),
-            view.frame,
-        );
+        map.extend(self.adds.iter().flatten().take(stats.added), view.frame);
     }
 }
 
@@ -563,7 +560,11 @@ impl<'a> Measure<'a> {
 /// Without this, duplicates win the pixel now and then as the camera
 /// moves, become stable, and the map grows on every revisit
 /// (`docs/performance.md#absorb-redundant`).
-fn absorb_redundant(chunks: &mut [ChunkUpdate], map: &mut SurfelMap, config: &FusionConfig) -> usize {
+fn absorb_redundant(
+    chunks: &mut [ChunkUpdate],
+    map: &mut SurfelMap,
+    config: &FusionConfig,
+) -> usize {
     let cos_gate = libm::cosf(config.normal_gate_deg.to_radians());
     let on_disk = |map: &SurfelMap, b: usize, j: usize| {
         map.normals[b].dot(map.normals[j]) >= cos_gate

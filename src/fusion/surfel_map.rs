@@ -426,7 +426,8 @@ impl SurfelMap {
         self.normals.extend(surfels.clone().map(|s| s.normal));
         self.colours.extend(surfels.clone().map(|s| s.colour));
         self.radii.extend(surfels.clone().map(|s| s.radius));
-        self.confidences.extend(surfels.clone().map(|s| s.confidence));
+        self.confidences
+            .extend(surfels.clone().map(|s| s.confidence));
         self.first_seen.extend(std::iter::repeat_n(frame, n));
         self.last_seen.extend(std::iter::repeat_n(frame, n));
         self.bounds.grow_all(first, &self.positions[first..], frame);
