@@ -64,9 +64,14 @@ pub struct Integrator {
     chunks: Vec<ChunkUpdate>,
     /// Per surfel: the pixel it is a candidate of this frame, or `NO_PIXEL`.
     pixels: Vec<u32>,
-    /// Per image row: the new surfels its pixels add, in pixel order
-    /// (world frame, metres; confidence the radial weight).
-    adds: Vec<Vec<Surfel>>,
+    /// Per image row: the pixels (row-major indices) that add a new
+    /// surfel, in pixel order.
+    adds: Vec<Vec<u32>>,
+    /// The pixels of `adds` within the surfel budget, in pixel order.
+    add_pixels: Vec<u32>,
+    /// A batch of the new surfels, built in parallel (world frame, metres;
+    /// confidence the radial weight), appended in pixel order.
+    new_surfels: Vec<Surfel>,
     /// Radial confidence weight per column and per row (it is separable).
     weight_u: Vec<f32>,
     weight_v: Vec<f32>,
@@ -175,6 +180,9 @@ impl MergeBatch {
         self.count = 0;
     }
 }
+
+/// New surfels built and appended at a time.
+const ADD_BATCH: usize = 16 * 1024;
 
 /// Marks a surfel that is no pixel's candidate this frame.
 const NO_PIXEL: u32 = u32::MAX;
@@ -488,9 +496,7 @@ impl Integrator {
                     ) {
                         covered += 1;
                     } else {
-                        // A new surfel's confidence is the radial weight
-                        // alone: the noise weight only sets a merge's share.
-                        row.push(measure.surfel(i, measure.gain(i)));
+                        row.push(i as u32);
                     }
                 }
                 covered
@@ -501,7 +507,21 @@ impl Integrator {
         let room = config.max_surfels.saturating_sub(map.len());
         stats.added = wanted.min(room);
         stats.skipped = wanted - stats.added;
-        map.extend(self.adds.iter().flatten().take(stats.added), view.frame);
+        self.add_pixels.clear();
+        self.add_pixels
+            .extend(self.adds.iter().flatten().take(stats.added));
+        // In batches, so that a frame adding a surfel at every pixel (a
+        // map's first: 11 MB at 640x480) holds only a batch of them at once.
+        for batch in self.add_pixels.chunks(ADD_BATCH) {
+            self.new_surfels.clear();
+            // A new surfel's confidence is the radial weight alone: the
+            // noise weight only sets a merge's share.
+            self.new_surfels.par_extend(batch.par_iter().map(|&i| {
+                let i = i as usize;
+                measure.surfel(i, measure.gain(i))
+            }));
+            map.extend(self.new_surfels.iter(), view.frame);
+        }
     }
 }
 
