@@ -96,12 +96,19 @@ impl<'a> NoiseWeights<'a> {
             let n = normals.get(i).copied().unwrap_or(Vec3::ZERO);
             (p, n)
         };
-        for (weight, &i) in out.iter_mut().zip(pixels) {
-            let (p, n) = measured(i);
-            let cos_ray = n.dot(p) / p.length();
-            *weight = self
-                .noise
-                .weight(self.noise.along_normal_m(p.z, cos_ray, self.focal));
+        // The measurements are gathered first: a loop reading them at
+        // random pixels was not vectorised.
+        let mut gathered = [(Vec3::ZERO, Vec3::ZERO); PIECE];
+        for (out, pixels) in out.chunks_mut(PIECE).zip(pixels.chunks(PIECE)) {
+            for (slot, &i) in gathered.iter_mut().zip(pixels) {
+                *slot = measured(i);
+            }
+            for (weight, &(p, n)) in out.iter_mut().zip(&gathered) {
+                let cos_ray = n.dot(p) / p.length();
+                *weight = self
+                    .noise
+                    .weight(self.noise.along_normal_m(p.z, cos_ray, self.focal));
+            }
         }
         let (w, h) = (self.width, self.height);
         for (weight, &i) in out.iter_mut().zip(pixels) {
@@ -127,6 +134,10 @@ impl<'a> NoiseWeights<'a> {
         }
     }
 }
+
+/// Pixels whose deviations [`NoiseWeights::at_each_into`] computes in one
+/// vectorised loop (a merge batch's worth).
+const PIECE: usize = 32;
 
 /// Relative depth jump between 4-neighbours that makes a depth edge.
 const EDGE_JUMP: f32 = 0.04;
