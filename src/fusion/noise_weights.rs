@@ -96,6 +96,9 @@ impl<'a> NoiseWeights<'a> {
             let n = normals.get(i).copied().unwrap_or(Vec3::ZERO);
             (p, n)
         };
+        // Weights past the pixels stay as they are, as `zip` leaves them.
+        let len = out.len().min(pixels.len());
+        let (out, pixels) = (&mut out[..len], &pixels[..len]);
         // The measurements are gathered first: a loop reading them at
         // random pixels was not vectorised.
         let mut gathered = [(Vec3::ZERO, Vec3::ZERO); PIECE];
@@ -211,6 +214,11 @@ mod tests {
             assert_eq!(w.to_bits(), weights.at(i).to_bits(), "pixel {i}");
             distinct.insert(w.to_bits());
         }
+        // An output longer than the pixels keeps its extra values.
+        let mut longer = vec![f32::NAN; 40];
+        weights.at_each_into(&pixels[..35], &mut longer);
+        assert!(longer[..35].iter().all(|w| w.is_finite()));
+        assert!(longer[35..].iter().all(|w| w.is_nan()));
         // The scene gives many different weights, and some zeros.
         assert!(
             distinct.len() > 100 && distinct.contains(&0.0f32.to_bits()),
