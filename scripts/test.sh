@@ -6,22 +6,38 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# Each section's wall time is printed when it ends (CI's time limit is the
+# sum; see docs/performance.md "CI's time").
+section_name=""
+section_start=$SECONDS
+section() {
+  if [ -n "$section_name" ]; then
+    echo "== $section_name: $((SECONDS - section_start)) s"
+  fi
+  section_name=$1
+  section_start=$SECONDS
+  [ -n "$section_name" ] && echo "== $section_name"
+  return 0
+}
+
+section "setup"
 bash scripts/setup.sh
 
-echo "== lint"
+section "lint"
 cargo fmt --all -- --check
 cargo clippy --all-targets --quiet -- -D warnings
 
-echo "== native tests"
+section "native tests"
 cargo test --quiet
 
 if [ -f scripts/test-wasm.sh ]; then
-  echo "== wasm tests (Node), package build"
+  section "wasm tests (Node), package build"
   bash scripts/test-wasm.sh
 fi
 
 if [ -d tests/browser ]; then
-  echo "== browser tests (headless Chromium)"
+  section "browser tests (headless Chromium)"
   node --test --test-concurrency=1 tests/browser/
 fi
-echo "== all tests passed"
+section ""
+echo "== all tests passed in $SECONDS s"
