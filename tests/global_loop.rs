@@ -385,6 +385,35 @@ struct Match {
     registered: (f64, f64),
 }
 
+impl Match {
+    /// One line: the match, its correction and both poses' errors.
+    fn describe(&self) -> String {
+        let g = &self.closure;
+        format!(
+            "frame {}: keyframe {}, correction {:.2} cm {:.2} deg, closed {}; relative to the keyframe \
+             tracked {:.2} cm {:.2} deg, registered {:.2} cm {:.2} deg off the truth",
+            self.frame,
+            g.keyframe_frame,
+            g.correction_m * 100.0,
+            g.correction_deg,
+            g.closed,
+            self.tracked.0 * 100.0,
+            self.tracked.1,
+            self.registered.0 * 100.0,
+            self.registered.1
+        )
+    }
+
+    /// Fails unless the registered pose is within 2 cm and 1.5 degrees of the truth.
+    fn assert_right(&self) {
+        assert!(
+            self.registered.0 < 0.02 && self.registered.1 < 1.5,
+            "a wrong global match: {}",
+            self.describe()
+        );
+    }
+}
+
 fn real_run(dir: &std::path::Path, global: bool) -> RealRun {
     let n = surfel_slam::dataset::Sequence::open(dir)
         .expect("sequence opens")
@@ -494,26 +523,12 @@ fn real_sequence_not_worse(name: &str, limit_m: f64) {
         on.lost
     );
     for m in &on.matches {
-        let g = &m.closure;
         println!(
-            "  frame {}: keyframe {}, correction {:.2} cm {:.2} deg, closed {}, loop stage {:.1} ms; relative to the keyframe \
-             tracked {:.2} cm {:.2} deg, registered {:.2} cm {:.2} deg off the truth",
-            m.frame,
-            g.keyframe_frame,
-            g.correction_m * 100.0,
-            g.correction_deg,
-            g.closed,
-            on.loop_ms[m.frame],
-            m.tracked.0 * 100.0,
-            m.tracked.1,
-            m.registered.0 * 100.0,
-            m.registered.1
+            "  {} (loop stage {:.1} ms)",
+            m.describe(),
+            on.loop_ms[m.frame]
         );
-        assert!(
-            m.registered.0 < 0.02 && m.registered.1 < 1.5,
-            "frame {}: a wrong global match",
-            m.frame
-        );
+        m.assert_right();
         assert!(
             m.registered.0 < m.tracked.0 || m.registered.1 < m.tracked.1,
             "frame {}: the match moved the pose away from the truth",
@@ -645,24 +660,8 @@ fn teddy_ping_pong_1500_frames() {
             run.matches.len()
         );
         for m in &run.matches {
-            println!(
-                "  frame {}: keyframe {}, correction {:.2} cm {:.2} deg, closed {}; tracked {:.2} cm {:.2} deg, \
-                 registered {:.2} cm {:.2} deg off the truth relative to the keyframe",
-                m.frame,
-                m.closure.keyframe_frame,
-                m.closure.correction_m * 100.0,
-                m.closure.correction_deg,
-                m.closure.closed,
-                m.tracked.0 * 100.0,
-                m.tracked.1,
-                m.registered.0 * 100.0,
-                m.registered.1
-            );
-            assert!(
-                m.registered.0 < 0.02 && m.registered.1 < 1.5,
-                "frame {}: a wrong global match",
-                m.frame
-            );
+            println!("  {}", m.describe());
+            m.assert_right();
         }
     }
     // A closure it makes must pay for itself (it once cost 0.86 -> 1.06 cm).
