@@ -114,8 +114,8 @@ fn teddy_archives_give_the_folders_ate() {
         return;
     };
     let tmp = scratch("teddy");
-    // Every 5th frame: reads spread over the whole archive at a fifth of
-    // a full run's cost (the archives are read where the frames lie).
+    // Every 5th frame: frames from all through the archive, at a fifth of
+    // a full run's cost.
     let stride = ["--stride", "5"];
     let folder = run_cli_with(&teddy, &stride);
     assert_eq!(folder.code, 0, "folder run: {}", folder.stderr);
