@@ -2,7 +2,8 @@
 //! at the return is beyond the local check's limit is closed from the
 //! keyframes, right against the known truth; a repetitive scene and frames
 //! of other places spliced in close no loop; the real sequences played
-//! forward and back are not worse.
+//! forward and back are not worse with loop closure, nor with the global
+//! check.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
@@ -361,6 +362,17 @@ fn frames_of_other_places_spliced_in_close_no_global_loop() {
     assert!(run.ate_m() < 0.005, "ATE {} m", run.ate_m());
 }
 
+/// Which loop closure a real run has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Loops {
+    /// None.
+    Off,
+    /// The local check only.
+    Local,
+    /// The local and the global check: the default.
+    Global,
+}
+
 /// Frames `0..n` and then `n-1..0` of a real sequence,
 /// stamped with the play position: ATE against the ground truth of the
 /// frame each position shows, the global matches with their position
@@ -368,7 +380,12 @@ fn frames_of_other_places_spliced_in_close_no_global_loop() {
 /// stage's milliseconds on the frames that looked.
 struct RealRun {
     ate_m: f64,
+    /// ATE when the first `n` positions had been played (the forward
+    /// pass): what a forward-only run ends with, since a run does not
+    /// depend on timing.
+    forward_ate_m: f64,
     lost: u32,
+    forward_lost: u32,
     matches: Vec<Match>,
     /// The loop stage's milliseconds, per frame.
     loop_ms: Vec<f64>,
@@ -414,24 +431,26 @@ impl Match {
     }
 }
 
-fn real_run(dir: &std::path::Path, global: bool) -> RealRun {
+fn real_run(dir: &std::path::Path, loops: Loops) -> RealRun {
     let n = surfel_slam::dataset::Sequence::open(dir)
         .expect("sequence opens")
         .frames
         .len();
     let order: Vec<usize> = (0..n).chain((0..n).rev()).collect();
-    real_run_in(dir, global, &order)
+    real_run_in(dir, loops, &order)
 }
 
 /// [`real_run`] of the frames in `order`.
-fn real_run_in(dir: &std::path::Path, global: bool, order: &[usize]) -> RealRun {
+fn real_run_in(dir: &std::path::Path, loops: Loops, order: &[usize]) -> RealRun {
     use surfel_slam::dataset::{read_frame, Sequence};
     let sequence = Sequence::open(dir).expect("sequence opens");
     let mut config = SlamConfig::from_preset(sequence.preset);
-    config.loop_closure.global.enabled = global;
+    config.loop_closure.enabled = loops != Loops::Off;
+    config.loop_closure.global.enabled = loops == Loops::Global;
     let mut slam = Pipeline::new(config.clone()).expect("config");
     let mut truth = Vec::new();
     let mut reports = Vec::new();
+    let mut forward = None;
     for (position, &j) in order.iter().enumerate() {
         let entry = &sequence.frames[j];
         let frame = read_frame(dir, entry, &config.depth).expect("frame decodes");
@@ -439,7 +458,12 @@ fn real_run_in(dir: &std::path::Path, global: bool, order: &[usize]) -> RealRun 
         if let Some(gt) = sequence.ground_truth_for(entry.timestamp, 0.02) {
             truth.push((position as f64, gt));
         }
+        if position + 1 == sequence.frames.len() {
+            let a = ate(slam.trajectory(), &truth, 0.01).expect("ate");
+            forward = Some((a.rmse_m, slam.counts().lost));
+        }
     }
+    let (forward_ate_m, forward_lost) = forward.expect("the order plays the sequence's length");
     let a = ate(slam.trajectory(), &truth, 0.01).expect("ate");
     let align = a.ground_truth_from_estimate;
     // A match is judged by the pose it gives relative to its keyframe's
@@ -478,7 +502,9 @@ fn real_run_in(dir: &std::path::Path, global: bool, order: &[usize]) -> RealRun 
         .collect();
     RealRun {
         ate_m: a.rmse_m,
+        forward_ate_m,
         lost: slam.counts().lost,
+        forward_lost,
         matches,
         loop_ms,
         looked,
@@ -494,16 +520,47 @@ fn median_max(v: &[f64]) -> (f64, f64) {
     )
 }
 
-/// Sequence `name` played forwards then backwards, with and without the
-/// global check: every global match must be right and the ATE no worse.
-/// (A forward-only run is not played as well: it is this run's first half,
-/// frame for frame, since a run does not depend on timing.)
+/// Sequence `name` played forwards then backwards, without loop closure,
+/// with the local check only and with the global check too (the default):
+/// loop closure must not make the ATE worse, forward or both ways, and
+/// every global match must be right and the ATE no worse than without
+/// the global check. (Forward-only runs are not played as well: they are
+/// these runs' first halves, frame for frame, since a run does not depend
+/// on timing.)
 fn real_sequence_not_worse(name: &str, limit_m: f64) {
     let Some(dir) = common::shared_dataset(name) else {
         return;
     };
-    let off = real_run(&dir, false);
-    let on = real_run(&dir, true);
+    let none = real_run(&dir, Loops::Off);
+    let off = real_run(&dir, Loops::Local);
+    let on = real_run(&dir, Loops::Global);
+    for (way, without, with) in [
+        (
+            "forward",
+            (none.forward_ate_m, none.forward_lost),
+            (on.forward_ate_m, on.forward_lost),
+        ),
+        (
+            "forward+backward",
+            (none.ate_m, none.lost),
+            (on.ate_m, on.lost),
+        ),
+    ] {
+        println!(
+            "{name} {way}: ATE {:.3} cm without loop closure, {:.3} cm with; lost {} / {}",
+            without.0 * 100.0,
+            with.0 * 100.0,
+            without.1,
+            with.1
+        );
+        assert!(with.1 <= without.1, "{way}: loop closure lost more frames");
+        assert!(
+            with.0 <= without.0 * 1.05 + 1e-4,
+            "{way}: {} m with loop closure vs {} m without",
+            with.0,
+            without.0
+        );
+    }
     let closed = on.matches.iter().filter(|m| m.closure.closed).count();
     // The cost of a look that found nothing: the loop stage on those
     // frames less the same frames' loop stage without the global check.
@@ -546,12 +603,12 @@ fn real_sequence_not_worse(name: &str, limit_m: f64) {
 }
 
 #[test]
-fn teddy_is_not_worse_with_the_global_check() {
+fn teddy_is_not_worse_with_loop_closure_and_the_global_check() {
     real_sequence_not_worse("tum_fr3_teddy", 0.0075);
 }
 
 #[test]
-fn icl_is_not_worse_with_the_global_check() {
+fn icl_is_not_worse_with_loop_closure_and_the_global_check() {
     real_sequence_not_worse("icl_office_kt0", 0.0002);
 }
 
@@ -649,7 +706,8 @@ fn teddy_ping_pong_1500_frames() {
     let order: Vec<usize> = (0..n).chain((1..n - 1).rev()).cycle().take(1500).collect();
     let mut ate_m = Vec::new();
     for global in [false, true] {
-        let run = real_run_in(&dir, global, &order);
+        let loops = if global { Loops::Global } else { Loops::Local };
+        let run = real_run_in(&dir, loops, &order);
         ate_m.push(run.ate_m);
         let looks = run.looked.iter().filter(|l| **l).count();
         let closed = run.matches.iter().filter(|m| m.closure.closed).count();

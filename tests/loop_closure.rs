@@ -1,4 +1,6 @@
-//! Loop closure end to end on the synthetic loop (known truth) and the real sequences.
+//! Loop closure end to end on the synthetic loop (known truth). The real
+//! sequences with and without it: `tests/global_loop.rs`, which plays them
+//! with the global check too.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 mod common;
@@ -409,66 +411,4 @@ fn a_spliced_frame_of_another_place_closes_no_loop() {
         .collect();
     let a = ate(&estimate, &truth, 0.01).expect("ate");
     assert!(a.rmse_m < 0.005, "ATE {} m", a.rmse_m);
-}
-
-/// Frames `0..n` then `n-1..0` of a real sequence, stamped with the play
-/// position; ATE against the ground truth of the frame each position shows.
-fn back_and_forth(
-    dir: &std::path::Path,
-    closure: bool,
-    both_ways: bool,
-) -> Option<(f64, u32, usize)> {
-    use surfel_slam::dataset::{read_frame, Sequence};
-    let sequence = Sequence::open(dir).expect("sequence opens");
-    let mut config = SlamConfig::from_preset(sequence.preset);
-    config.loop_closure.enabled = closure;
-    let mut slam = Pipeline::new(config.clone()).expect("config");
-    let n = sequence.frames.len();
-    let order: Vec<usize> = if both_ways {
-        (0..n).chain((0..n).rev()).collect()
-    } else {
-        (0..n).collect()
-    };
-    let mut truth = Vec::new();
-    let mut last = None;
-    for (position, &j) in order.iter().enumerate() {
-        let entry = &sequence.frames[j];
-        let frame = read_frame(dir, entry, &config.depth).expect("frame decodes");
-        last = Some(slam.push_frame(&frame, position as f64).expect("accepted"));
-        if let Some(gt) = sequence.ground_truth_for(entry.timestamp, 0.02) {
-            truth.push((position as f64, gt));
-        }
-    }
-    let a = ate(slam.trajectory(), &truth, 0.01).expect("ate");
-    let r = last?;
-    Some((a.rmse_m, r.loop_closures, r.counts.lost as usize))
-}
-
-fn real_sequence_not_worse(name: &str) {
-    let Some(dir) = common::shared_dataset(name) else {
-        return;
-    };
-    for both_ways in [false, true] {
-        let (off, _, lost_off) = back_and_forth(&dir, false, both_ways).expect("frames");
-        let (on, closures, lost_on) = back_and_forth(&dir, true, both_ways).expect("frames");
-        println!(
-            "{name} {}: ATE {:.3} cm without loop closure, {:.3} cm with ({closures} closures), lost {lost_off} / {lost_on}",
-            if both_ways { "forward+backward" } else { "forward" },
-            off * 100.0,
-            on * 100.0
-        );
-        assert!(lost_on <= lost_off);
-        // Not worse, to the spread that reordered parallel sums give.
-        assert!(on <= off * 1.05 + 1e-4, "{on} m with closure vs {off} m");
-    }
-}
-
-#[test]
-fn teddy_is_not_worse_with_loop_closure() {
-    real_sequence_not_worse("tum_fr3_teddy");
-}
-
-#[test]
-fn icl_is_not_worse_with_loop_closure() {
-    real_sequence_not_worse("icl_office_kt0");
 }
