@@ -2,7 +2,7 @@
 # Everything that tests the WebAssembly side, in order:
 #   1. native reference poses for the parity check (tests/wasm_parity_native.rs
 #      -> target/wasm-parity/*.bits, the poses' bits; see tests/wasm_common/mod.rs)
-#   2. cargo test --target wasm32-unknown-unknown under Node
+#   2. cargo test --release --target wasm32-unknown-unknown under Node
 #      (wasm-bindgen-test-runner; tests/wasm_node.rs compares with step 1 and,
 #      with SURFEL_SLAM_REQUIRE_PARITY=1, fails on a missing/stale reference)
 #   3. scripts/build.sh: both modules, pkg/, www/pkg/, SIMD instruction check
@@ -34,8 +34,9 @@ cargo test --test wasm_parity_native
 echo "== 2. wasm tests under Node"
 # Only the targets with wasm tests: the library's own (simd128 against the
 # scalar code) and tests/wasm_node.rs; the other test files are native only,
-# and building each as an empty wasm test cost CI time.
-SURFEL_SLAM_REQUIRE_PARITY=1 cargo test --target wasm32-unknown-unknown --no-default-features \
+# and building each as an empty wasm test cost CI time. In release, as the
+# module ships, which also shares part of the build with step 3.
+SURFEL_SLAM_REQUIRE_PARITY=1 cargo test --release --target wasm32-unknown-unknown --no-default-features \
   --lib --test wasm_node -- --nocapture
 
 echo "== 3. build (modules, package, SIMD check)"

@@ -1,5 +1,5 @@
 //! The wasm bindings under Node (wasm-bindgen-test):
-//! `cargo test --target wasm32-unknown-unknown --no-default-features --test wasm_node`
+//! `cargo test --release --target wasm32-unknown-unknown --no-default-features --test wasm_node`
 //! (`.cargo/config.toml` makes wasm-bindgen-test-runner the runner).
 //!
 //! - a synthetic sequence tracked through `Slam.pushRaw` has a small ATE and
