@@ -1,5 +1,5 @@
 //! Loop closure end to end on the synthetic loop (known truth). The real
-//! sequences with and without it: `tests/global_loop.rs`, which plays them
+//! sequences with and without it: `tests/real_loops.rs`, which plays them
 //! with the global check too.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
