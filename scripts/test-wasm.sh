@@ -35,7 +35,8 @@ echo "== 2. wasm tests under Node"
 # Only the targets with wasm tests: the library's own (simd128 against the
 # scalar code) and tests/wasm_node.rs; the other test files are native only,
 # and building each as an empty wasm test cost CI time. In release, as the
-# module ships, which also shares part of the build with step 3.
+# module ships: step 3's single-threaded module is then already built (the
+# features resolve alike, see Cargo.toml's wasm32 dependencies).
 SURFEL_SLAM_REQUIRE_PARITY=1 cargo test --release --target wasm32-unknown-unknown --no-default-features \
   --lib --test wasm_node -- --nocapture
 
