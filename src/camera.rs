@@ -349,9 +349,10 @@ impl CameraPreset {
     /// Depth noise model this preset's sequences are tracked and fused with
     /// by default.
     ///
-    /// - ICL-NUIM: structured light (Khoshelham and Elberink's z^2) for the
-    ///   Kinect-noised renderings, where it keeps far walls from dominating
-    ///   (kt0 with Kinect noise 0.87 -> 0.35 cm, tests/sensor_noise.rs);
+    /// - ICL-NUIM: simulated Kinect (Khoshelham and Elberink's z^2 over a
+    ///   3 mm floor) for the Kinect-noised renderings, where it keeps far
+    ///   walls from dominating and near planes from sliding
+    ///   ([`SensorNoise::simulated_kinect`](crate::noise::SensorNoise::simulated_kinect));
     ///   the clean renderings are recognised on their first frame and
     ///   tracked unweighted ([`Self::clean_depth_noise`]).
     /// - 7-Scenes: the Kinect v1 model (Nguyen et al. 2012,
@@ -369,7 +370,7 @@ impl CameraPreset {
         match self {
             Self::TumFr1 | Self::TumFr2 | Self::TumFr3 => SensorNoise::uniform(),
             Self::SevenScenes => SensorNoise::kinect_v1(),
-            Self::IclNuim => SensorNoise::structured_light(),
+            Self::IclNuim => SensorNoise::simulated_kinect(),
         }
     }
 

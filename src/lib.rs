@@ -30,6 +30,7 @@ pub mod preprocess;
 pub mod random;
 pub mod se3;
 pub mod session;
+pub mod simulated_noise;
 pub mod synthetic;
 pub mod track;
 #[cfg(target_arch = "wasm32")]

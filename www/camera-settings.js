@@ -98,8 +98,9 @@ export class CameraSettings {
   /** The choices on the page that a newly opened sequence keeps. */
   pageOptions() {
     const el = this.el;
-    // No noise key: the preset's own model.
+    // No noise or tracker key: the preset's own.
     const noise = el.noise.value ? { noise: el.noise.value } : {};
-    return { tracker: el.tracker.value, halfResolution: el.half.checked, loopClosure: el.loopClosure.checked, ...noise };
+    const tracker = el.tracker.value ? { tracker: el.tracker.value } : {};
+    return { ...tracker, halfResolution: el.half.checked, loopClosure: el.loopClosure.checked, ...noise };
   }
 }

@@ -23,6 +23,7 @@ use surfel_slam::pipeline::Localisation;
 use surfel_slam::session;
 use surfel_slam::{FrameReport, Pipeline, SlamConfig, Verdict};
 
+use crate::frame_log::FrameLog;
 use crate::loop_log::LoopLog;
 use crate::mesh_file::{mesh_format, write_mesh_file};
 use crate::{
@@ -50,6 +51,11 @@ pub struct RunArgs {
     /// truth's errors of the tracked and corrected pose when known).
     #[arg(long)]
     loop_log: Option<PathBuf>,
+    /// Write one CSV row per input frame here: verdict, tracker statistics,
+    /// the pose as tracked and, with ground truth, the frame's relative
+    /// pose error (columns: docs/cli.md).
+    #[arg(long)]
+    frame_log: Option<PathBuf>,
     /// Write the surfel map here (binary PLY).
     #[arg(long)]
     ply: Option<PathBuf>,
@@ -118,14 +124,18 @@ pub fn run(args: &RunArgs, given: &[String]) -> Result<u8> {
         .loop_log
         .as_ref()
         .map(|_| LoopLog::new(&sequence.ground_truth));
+    let mut frame_log = args.frame_log.as_ref().map(|_| FrameLog::new(&sequence));
     let played = track_frames(
         &mut source,
         &frames,
         &mut slam,
-        (args.quiet, loop_log.as_mut()),
+        (args.quiet, loop_log.as_mut(), frame_log.as_mut()),
     );
     write_outputs(args, &slam, mesh_config)?;
     if let (Some(log), Some(path)) = (&loop_log, &args.loop_log) {
+        log.write(path)?;
+    }
+    if let (Some(log), Some(path)) = (&frame_log, &args.frame_log) {
         log.write(path)?;
     }
     print_summary(args, &sequence, &slam, frames.len(), played);
@@ -338,7 +348,11 @@ fn track_frames(
     source: &mut DatasetSource,
     frames: &[&FrameEntry],
     slam: &mut Pipeline,
-    (quiet, mut loop_log): (bool, Option<&mut LoopLog<'_>>),
+    (quiet, mut loop_log, mut frame_log): (
+        bool,
+        Option<&mut LoopLog<'_>>,
+        Option<&mut FrameLog<'_>>,
+    ),
 ) -> Played {
     let bar = progress_bar(frames.len(), quiet);
     let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
@@ -359,6 +373,15 @@ fn track_frames(
                 if let Some(log) = loop_log.as_deref_mut() {
                     log.record(slam, &report);
                 }
+                if let Some(log) = frame_log.as_deref_mut() {
+                    let online = match report.pose() {
+                        Some(_) if !slam.is_localising() => {
+                            slam.online_trajectory().last().map(|(_, p)| *p)
+                        }
+                        pose => pose,
+                    };
+                    log.record(entry, &report, online);
+                }
                 report_verdict(&bar, entry, &report, (streak, slam.is_localising()));
                 streak = report.counts.lost_streak;
                 bar.set_message(format!(
@@ -367,6 +390,9 @@ fn track_frames(
                 ));
             }
             Err(e) => {
+                if let Some(log) = frame_log.as_deref_mut() {
+                    log.record_unreadable(entry);
+                }
                 failed += 1;
                 bar.suspend(|| eprintln!("frame {} skipped: {}", entry.index, describe(&e)));
             }

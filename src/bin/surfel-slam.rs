@@ -13,6 +13,7 @@
 
 mod bench;
 mod evaluate;
+mod frame_log;
 mod loop_log;
 mod mesh_file;
 mod plot;
@@ -27,6 +28,7 @@ use std::process::ExitCode;
 use surfel_slam::dataset::Sequence;
 use surfel_slam::fusion::FusionConfig;
 use surfel_slam::mesh::{MeshFormat, VOXEL_SIZE_RANGE_M};
+use surfel_slam::simulated_noise::{NoiseSimulation, SimulatedSensor};
 use surfel_slam::track::{TrackerConfig, TrackerMode};
 use surfel_slam::{CameraPreset, SensorNoise, SlamConfig};
 
@@ -73,13 +75,10 @@ pub(crate) struct TrackingArgs {
         value_parser = positive
     )]
     max_surfels: usize,
-    /// Tracker: icp (geometry), rgb (photometric) or joint (both).
-    #[arg(
-        long,
-        default_value = TrackerMode::default().name(),
-        value_parser = tracker_parser()
-    )]
-    tracker: TrackerMode,
+    /// Tracker: icp (geometry), rgb (photometric) or joint (both)
+    /// [default: the preset's: joint for icl-nuim, icp for the others].
+    #[arg(long, value_parser = tracker_parser())]
+    tracker: Option<TrackerMode>,
     /// Joint mode: weight w of the ICP term (A = A_rgb + w^2 A_icp).
     #[arg(
         long,
@@ -89,16 +88,31 @@ pub(crate) struct TrackingArgs {
     )]
     icp_weight: f64,
     /// Depth noise model weighting tracking and fusion: kinect-v1,
-    /// structured-light, rendered, uniform (no weighting), or coefficients
+    /// structured-light, simulated-kinect, rendered, uniform (no weighting), or coefficients
     /// `base,quadratic[,offset[,angle[,lateral_px[,edge]]]]` of
     /// sigma_z = base + quadratic (z - offset)^2 (metres) [default: preset's:
     /// uniform for tum-fr1/tum-fr2/tum-fr3, kinect-v1 for 7-scenes; icl-nuim:
-    /// rendered when the first frame's depth is clean, else structured-light].
+    /// rendered when the first frame's depth is clean, else simulated-kinect].
     #[arg(long, value_parser = noise_parser)]
     noise: Option<SensorNoise>,
     /// Experiments: smallest noise weight of a fused measurement.
     #[arg(long, hide = true, allow_negative_numbers = true, value_parser = non_negative_f32)]
     min_noise_weight: Option<f32>,
+    /// Simulate a sensor's noise on the (clean) input depth: kinect-v1
+    /// (ICL-NUIM's recipe: jitter, disparity noise, 1/8 px steps).
+    #[arg(long, value_parser = simulated_sensor_parser)]
+    simulate_noise: Option<SimulatedSensor>,
+    /// With --simulate-noise: the draw (the same seed gives the same noise).
+    #[arg(long, default_value_t = 1, requires = "simulate_noise")]
+    noise_seed: u64,
+}
+
+/// Parses a simulated sensor's name (see `--simulate-noise`).
+fn simulated_sensor_parser(s: &str) -> Result<SimulatedSensor, String> {
+    SimulatedSensor::from_name(s).ok_or_else(|| {
+        let names: Vec<_> = SimulatedSensor::ALL.iter().map(|s| s.name()).collect();
+        format!("expected one of {}", names.join(", "))
+    })
 }
 
 /// A noise model's name, or its coefficients when it has none.
@@ -143,10 +157,12 @@ impl TrackingArgs {
             (
                 "tracker",
                 "--tracker",
-                Some((
-                    self.tracker.name().to_owned(),
-                    session.tracker.mode.name().to_owned(),
-                )),
+                self.tracker.map(|mode| {
+                    (
+                        mode.name().to_owned(),
+                        session.tracker.mode.name().to_owned(),
+                    )
+                }),
             ),
             (
                 "icp_weight",
@@ -172,7 +188,9 @@ impl TrackingArgs {
     pub(crate) fn apply(&self, config: &mut SlamConfig) {
         config.half_resolution = self.half;
         config.fusion.max_surfels = self.max_surfels;
-        config.tracker.mode = self.tracker;
+        if let Some(mode) = self.tracker {
+            config.tracker.mode = mode;
+        }
         config.tracker.icp_weight = self.icp_weight;
         if let Some(noise) = self.noise {
             config.set_noise(noise);
@@ -180,6 +198,10 @@ impl TrackingArgs {
         if let Some(w) = self.min_noise_weight {
             config.fusion.min_noise_weight = w;
         }
+        config.simulate_noise = self.simulate_noise.map(|sensor| NoiseSimulation {
+            sensor,
+            seed: self.noise_seed,
+        });
     }
 }
 

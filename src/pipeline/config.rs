@@ -7,7 +7,8 @@ use crate::loop_closure::relocalise::RelocaliseConfig;
 use crate::loop_closure::LoopClosureConfig;
 use crate::noise::SensorNoise;
 use crate::preprocess::PreprocessConfig;
-use crate::track::TrackerConfig;
+use crate::simulated_noise::NoiseSimulation;
+use crate::track::{TrackerConfig, TrackerMode};
 use thiserror::Error;
 
 /// Everything the pipeline needs to know.
@@ -39,6 +40,11 @@ pub struct SlamConfig {
     /// ceiling (1508 frames: 0.57 cm ATE against 0.03 cm unweighted).
     /// [`Self::set_noise`] clears it.
     pub clean_depth_noise: Option<SensorNoise>,
+    /// Noise simulated on every pushed frame's depth before anything else
+    /// reads it (a clean sequence run as a real sensor would see it;
+    /// [`crate::simulated_noise`]); `None`: the depth as given.
+    #[serde(default)]
+    pub simulate_noise: Option<NoiseSimulation>,
 }
 
 impl SlamConfig {
@@ -51,6 +57,7 @@ impl SlamConfig {
             depth: preset.depth_settings(),
             preprocess: PreprocessConfig::default(),
             tracker: TrackerConfig {
+                mode: preset_tracker(preset),
                 noise: preset.sensor_noise(),
                 ..TrackerConfig::default()
             },
@@ -61,6 +68,7 @@ impl SlamConfig {
             relocalise: RelocaliseConfig::default(),
             loop_closure: LoopClosureConfig::default(),
             clean_depth_noise: preset.clean_depth_noise(),
+            simulate_noise: None,
         }
     }
 
@@ -124,6 +132,27 @@ impl SlamConfig {
             )));
         }
         Ok(())
+    }
+}
+
+/// The tracker a preset's sequences are tracked with by default.
+///
+/// - ICL-NUIM: joint (ICP + photometric). Its office looks up at a ceiling
+///   meeting a wall (two planes: the slide along their join is free in
+///   geometry, pinned by the tiles and lights in colour). The long office
+///   (`icl_office_kt0_long`, 503 frames at 10 Hz): clean 1.102 cm with ICP,
+///   0.029 cm joint; kt0 (150 frames) 0.0122 cm either way (docs/design.md,
+///   "Defaults per preset").
+/// - TUM, 7-Scenes: ICP. Joint cost TUM fr3/teddy 0.75 -> 0.79 cm, and the
+///   7-Scenes colour camera is not registered to its depth camera.
+#[must_use]
+pub fn preset_tracker(preset: CameraPreset) -> TrackerMode {
+    match preset {
+        CameraPreset::IclNuim => TrackerMode::Joint,
+        CameraPreset::TumFr1
+        | CameraPreset::TumFr2
+        | CameraPreset::TumFr3
+        | CameraPreset::SevenScenes => TrackerMode::Icp,
     }
 }
 

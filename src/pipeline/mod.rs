@@ -18,7 +18,7 @@ mod report;
 mod settings_check;
 mod state;
 
-pub use config::{PipelineError, SlamConfig};
+pub use config::{preset_tracker, PipelineError, SlamConfig};
 pub use localise::Localisation;
 pub use report::{FrameReport, StageTimings, Verdict, VerdictCounts};
 pub use settings_check::{depth_scale_warning, layout_warnings, SettingsCheck, SettingsWarning};
@@ -50,6 +50,8 @@ pub struct Pipeline {
     half_frame: RgbdFrame,
     /// The last frame decoded by `push_png`, and the decoder's buffers.
     decoded: RgbdFrame,
+    /// The pushed frame with `SlamConfig::simulate_noise` applied.
+    noisy_frame: RgbdFrame,
     /// `decoded` is the frame of the last push, and that push succeeded.
     decoded_was_pushed: bool,
     scratch: DecodeScratch,
@@ -96,6 +98,7 @@ impl Pipeline {
             pyramid,
             half_frame: RgbdFrame::default(),
             decoded: RgbdFrame::default(),
+            noisy_frame: RgbdFrame::default(),
             decoded_was_pushed: false,
             scratch: DecodeScratch::default(),
             settings_check: SettingsCheck::default(),
@@ -238,10 +241,31 @@ impl Pipeline {
         let input = self.config.intrinsics;
         frame.expect_size(input.width, input.height)?;
         frame.validate()?;
+        let Some(simulation) = self.config.simulate_noise else {
+            return Ok(self.push_valid(frame, timestamp));
+        };
+        // Taken out and put back: the stages borrow the pipeline mutably.
+        let mut noisy = std::mem::take(&mut self.noisy_frame);
+        noisy.clone_from(frame);
+        simulation.apply_into(
+            &frame.depth_m,
+            frame.width,
+            input.fx,
+            u64::from(self.frame_index),
+            &mut noisy.depth_m,
+        );
+        let report = self.push_valid(&noisy, timestamp);
+        self.noisy_frame = noisy;
+        Ok(report)
+    }
+
+    /// [`Self::push_frame`] for a frame of the right size that passed
+    /// validation (with the simulated noise, when configured).
+    fn push_valid(&mut self, frame: &RgbdFrame, timestamp: f64) -> FrameReport {
         if let Some(localisation) = self.localising.take() {
             let (report, localisation) = self.localise_frame(frame, timestamp, localisation);
             self.localising = Some(localisation);
-            return Ok(report);
+            return report;
         }
         let index = self.frame_index;
         if index == 0 {
@@ -281,7 +305,7 @@ impl Pipeline {
         };
         let mut report = self.report(index, timestamp, &tracked, (fusion, closure), timings);
         report.settings_warning = self.settings_check.take_unreported();
-        Ok(report)
+        report
     }
 
     /// On the first frame: the configured noise models, or the clean-depth

@@ -16,6 +16,7 @@ use crate::camera::CameraPreset;
 use crate::frame::DepthSettings;
 use crate::noise::SensorNoise;
 use crate::pipeline::SlamConfig;
+use crate::simulated_noise::{NoiseSimulation, SimulatedSensor};
 use crate::track::TrackerMode;
 
 #[wasm_bindgen(typescript_custom_section)]
@@ -54,7 +55,11 @@ export interface SlamConfig {
   /** Relocalise a lost camera from the fern keyframes. */
   relocalise?: boolean;
   /** Depth noise model weighting tracking and fusion (default: the preset's; 'uniform' = no weighting). */
-  noise?: 'kinect-v1' | 'structured-light' | 'rendered' | 'uniform';
+  noise?: 'kinect-v1' | 'structured-light' | 'simulated-kinect' | 'rendered' | 'uniform';
+  /** Simulate a sensor's noise on every pushed frame's (clean) depth: ICL-NUIM's Kinect v1 recipe. */
+  simulateNoise?: 'kinect-v1' | null;
+  /** With simulateNoise: the draw (an integer; the same seed gives the same noise). Default 1. */
+  noiseSeed?: number;
 }
 "#;
 
@@ -140,6 +145,9 @@ pub const CONFIG_KEYS: &[ConfigKey] = &[
     key("tracker", Setter::Custom(set_tracker)),
     key("icpWeight", Setter::Custom(set_icp_weight)),
     key("noise", Setter::Custom(set_noise)),
+    key("simulateNoise", Setter::Custom(set_simulate_noise)),
+    // After `simulateNoise`: the seed of the simulation it made.
+    key("noiseSeed", Setter::Custom(set_noise_seed)),
     key(
         "stableConfidence",
         Setter::F32(|c, v| c.fusion.stable_confidence = v),
@@ -194,6 +202,32 @@ fn set_tracker(cfg: &mut SlamConfig, v: &JsValue) -> Result<(), String> {
     cfg.tracker.mode = TrackerMode::from_name(&name)
         .ok_or_else(|| format!("config.tracker must be 'icp', 'rgb' or 'joint', got {name:?}"))?;
     Ok(())
+}
+
+fn set_simulate_noise(cfg: &mut SlamConfig, v: &JsValue) -> Result<(), String> {
+    if v.is_null() {
+        cfg.simulate_noise = None;
+        return Ok(());
+    }
+    let name = string("simulateNoise", v)?;
+    let sensor = SimulatedSensor::from_name(&name)
+        .ok_or_else(|| format!("config.simulateNoise must be 'kinect-v1' or null, got {name:?}"))?;
+    cfg.simulate_noise = Some(NoiseSimulation { sensor, seed: 1 });
+    Ok(())
+}
+
+fn set_noise_seed(cfg: &mut SlamConfig, v: &JsValue) -> Result<(), String> {
+    let seed = v
+        .as_f64()
+        .filter(|n| (0.0..=9_007_199_254_740_991.0).contains(n) && n.fract() == 0.0)
+        .ok_or_else(|| "config.noiseSeed must be an integer from 0 to 2^53 - 1".to_string())?;
+    match cfg.simulate_noise.as_mut() {
+        Some(simulation) => {
+            simulation.seed = seed as u64;
+            Ok(())
+        }
+        None => Err("config.noiseSeed needs config.simulateNoise".to_string()),
+    }
 }
 
 fn set_noise(cfg: &mut SlamConfig, v: &JsValue) -> Result<(), String> {

@@ -35,8 +35,8 @@ test('bundled sample plays with the threaded module and draws the map', { timeou
   });
   try {
     const { page, requests, consoleErrors } = await openPage(env, '/');
-    // The new options: the default tracker is shown, and the flow overlay draws tracks.
-    assert.equal(await page.inputValue('#tracker'), 'icp');
+    // The new options: the preset's tracker is the default, and the flow overlay draws tracks.
+    assert.equal(await page.inputValue('#tracker'), '');
     await page.check('#show-flow');
     const started = Date.now();
     const status = await waitForStatus(page, (s) => s.done || s.framesProcessed >= 44, {
