@@ -350,7 +350,7 @@ impl CameraPreset {
     /// by default.
     ///
     /// - ICL-NUIM: simulated Kinect (Khoshelham and Elberink's z^2 over a
-    ///   3 mm floor) for the Kinect-noised renderings, where it keeps far
+    ///   5 mm floor) for the Kinect-noised renderings, where it keeps far
     ///   walls from dominating and near planes from sliding
     ///   ([`SensorNoise::simulated_kinect`](crate::noise::SensorNoise::simulated_kinect));
     ///   the clean renderings are recognised on their first frame and

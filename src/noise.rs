@@ -79,19 +79,23 @@ impl SensorNoise {
 
     /// Depth with Kinect v1 noise simulated on a rendering (ICL-NUIM's
     /// noisy sequences, `--simulate-noise kinect-v1`): the disparity
-    /// noise's `1.425e-3 z^2` m over a floor of 3 mm. The floor stands for
+    /// noise's `1.425e-3 z^2` m over a floor of 5 mm, axial only (the
+    /// structured-light model's angle, lateral and edge terms took seed 1
+    /// from 0.56 to 0.90 cm). The floor stands for
     /// what a point-to-plane residual holds besides the frame's disparity
     /// noise and does not shrink near the camera (the fused model's own
     /// scatter, the 0.5 px smear across slanted surfaces): without it near
-    /// surfaces outweigh far ones 100:1 and a near plane slides (the long
-    /// office, joint tracker, seed 1: 21.9 cm ATE with the plain z^2 model,
-    /// 0.82 cm with the floor; kt0 0.195 -> 0.058 cm; docs/design.md,
-    /// "Defaults per preset").
+    /// surfaces outweigh far ones 100:1 and a near plane slides. The long
+    /// office, joint tracker, seed 1, ATE by floor: none 21.9 cm, 2 mm
+    /// 42.9, 3 mm 0.82, 5 mm 0.56, 10 mm 0.71 (more far views lost); kt0
+    /// 0.195, 0.072, 0.058, 0.055 cm. 5 mm: the best of both, away from the
+    /// cliff below 3 mm (docs/design.md, "Defaults per preset").
     #[must_use]
     pub const fn simulated_kinect() -> Self {
         Self {
-            base_m: 0.003,
-            ..Self::structured_light()
+            base_m: 0.005,
+            quadratic_per_m: 1.425e-3,
+            ..Self::uniform()
         }
     }
 
