@@ -39,7 +39,9 @@ fn run(sequence: &Sequence, dir: &std::path::Path, config: SlamConfig) -> Run {
     let (mut dishonest, mut held) = (Vec::new(), 0);
     for entry in sequence.frames.iter().skip(FIRST).take(COUNT) {
         let frame = read_frame(dir, entry, &config.depth).expect("frame decodes");
-        let report = slam.push_frame(&frame, entry.timestamp).expect("frame accepted");
+        let report = slam
+            .push_frame(&frame, entry.timestamp)
+            .expect("frame accepted");
         let truth = sequence
             .ground_truth_for(entry.timestamp, 0.02)
             .expect("exact truth for every frame");
