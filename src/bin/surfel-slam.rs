@@ -46,7 +46,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Track and fuse a TUM, ICL-NUIM or 7-Scenes folder.
+    /// Track and fuse a TUM, ICL-NUIM, 7-Scenes, RealSense or Stray Scanner folder.
     Run(run::RunArgs),
     /// Time every stage over a sequence (files preloaded; decode included):
     /// medians per stage and per frame, peak memory.
@@ -441,7 +441,12 @@ pub(crate) fn config_for(
     o: &CameraOverrides,
     tracking: &TrackingArgs,
 ) -> Result<SlamConfig> {
-    let mut config = SlamConfig::from_preset(o.preset.unwrap_or(sequence.preset));
+    let preset = o.preset.unwrap_or(sequence.preset);
+    let mut config = SlamConfig::from_preset(preset);
+    // The folder's own calibration file, unless another camera was chosen.
+    if let (true, Some(k)) = (preset == sequence.preset, sequence.intrinsics) {
+        config.intrinsics = k;
+    }
     let k = &mut config.intrinsics;
     k.fx = o.fx.unwrap_or(k.fx);
     k.fy = o.fy.unwrap_or(k.fy);
@@ -452,6 +457,18 @@ pub(crate) fn config_for(
     d.min_m = o.depth_min.unwrap_or(d.min_m);
     d.max_m = o.depth_max.unwrap_or(d.max_m);
     tracking.apply(&mut config);
+    if sequence.is_depth_only() {
+        let instead = match config.tracker.mode {
+            TrackerMode::Icp => String::new(),
+            other => format!(", not --tracker {}", other.name()),
+        };
+        config.tracker.mode = TrackerMode::Icp;
+        eprintln!(
+            "note: this {} sequence has no colour images: tracking on depth alone (icp{instead}), \
+             the map coloured grey",
+            sequence.kind.name()
+        );
+    }
     // Refuse bad camera settings before reading any image.
     config.validate()?;
     Ok(config)
