@@ -22,7 +22,7 @@ use crate::track::TrackerMode;
 const TS_SLAM_CONFIG: &'static str = r#"
 /** Camera and tracking settings for `new Slam(config)`; fields override the preset. */
 export interface SlamConfig {
-  preset?: 'tum-fr1' | 'tum-fr2' | 'tum-fr3' | 'icl-nuim' | '7-scenes';
+  preset?: 'tum-fr1' | 'tum-fr2' | 'tum-fr3' | 'icl-nuim' | '7-scenes' | 'realsense-d400' | 'stray-lidar';
   fx?: number; fy?: number; cx?: number; cy?: number; width?: number; height?: number;
   /** Raw depth units per metre. */
   depthScale?: number;
@@ -54,7 +54,7 @@ export interface SlamConfig {
   /** Relocalise a lost camera from the fern keyframes. */
   relocalise?: boolean;
   /** Depth noise model weighting tracking and fusion (default: the preset's; 'uniform' = no weighting). */
-  noise?: 'kinect-v1' | 'structured-light' | 'rendered' | 'uniform';
+  noise?: 'kinect-v1' | 'structured-light' | 'active-stereo' | 'lidar' | 'rendered' | 'uniform';
 }
 "#;
 
