@@ -89,10 +89,12 @@ pub(crate) struct TrackingArgs {
     )]
     icp_weight: f64,
     /// Depth noise model weighting tracking and fusion: kinect-v1,
-    /// structured-light, rendered, uniform (no weighting), or coefficients
+    /// structured-light, active-stereo, lidar, rendered, uniform (no
+    /// weighting), or coefficients
     /// `base,quadratic[,offset[,angle[,lateral_px[,edge]]]]` of
     /// sigma_z = base + quadratic (z - offset)^2 (metres) [default: preset's:
-    /// uniform for tum-fr1/tum-fr2/tum-fr3, kinect-v1 for 7-scenes; icl-nuim:
+    /// uniform for tum-fr1/tum-fr2/tum-fr3, kinect-v1 for 7-scenes,
+    /// active-stereo for realsense-d400, lidar for stray-lidar; icl-nuim:
     /// rendered when the first frame's depth is clean, else structured-light].
     #[arg(long, value_parser = noise_parser)]
     noise: Option<SensorNoise>,
