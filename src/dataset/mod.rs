@@ -379,22 +379,8 @@ pub fn detect_layout(file_names: &[String]) -> Result<Layout, DatasetError> {
             index_files,
         });
     }
-    if top.contains(&"camera_intrinsic.json") && realsense::has_frames(&names, &root_prefix) {
-        return Ok(Layout {
-            kind: DatasetKind::RealSense,
-            root_prefix: root_prefix.clone(),
-            index_files: vec![full("camera_intrinsic.json")],
-        });
-    }
-    if top.contains(&"camera_matrix.csv")
-        && top.contains(&"odometry.csv")
-        && stray::has_frames(&names, &root_prefix)
-    {
-        return Ok(Layout {
-            kind: DatasetKind::StrayScanner,
-            root_prefix: root_prefix.clone(),
-            index_files: vec![full("camera_matrix.csv"), full("odometry.csv")],
-        });
+    if let Some(layout) = detect_sensor_layout(&top, &names, &root_prefix) {
+        return Ok(layout);
     }
     let mut sample: Vec<&str> = names.iter().take(5).copied().collect();
     if names.len() > 5 {
@@ -410,6 +396,32 @@ pub fn detect_layout(file_names: &[String]) -> Result<Layout, DatasetError> {
             names.len(),
             sample.join(", ")
         ),
+    })
+}
+
+/// The layouts of a sensor's own recording tools, recognised by their
+/// calibration files (`top`: the names directly in `root_prefix`) beside a
+/// `depth/NNNNNN.png`: RealSense (Open3D's recorder) and Stray Scanner.
+fn detect_sensor_layout(top: &[&str], names: &[&str], root_prefix: &str) -> Option<Layout> {
+    let full = |n: &str| format!("{root_prefix}{n}");
+    let (kind, index_files) = if top.contains(&"camera_intrinsic.json") {
+        (DatasetKind::RealSense, vec![full("camera_intrinsic.json")])
+    } else if top.contains(&"camera_matrix.csv") && top.contains(&"odometry.csv") {
+        (
+            DatasetKind::StrayScanner,
+            vec![full("camera_matrix.csv"), full("odometry.csv")],
+        )
+    } else {
+        return None;
+    };
+    let has_depth = match kind {
+        DatasetKind::RealSense => realsense::has_frames(names, root_prefix),
+        _ => stray::has_frames(names, root_prefix),
+    };
+    has_depth.then(|| Layout {
+        kind,
+        root_prefix: root_prefix.to_owned(),
+        index_files,
     })
 }
 

@@ -83,40 +83,7 @@ pub fn parse_sequence(
     }
     let seq = dataset::parse_sequence(&layout, &names, &texts, name_hint.as_deref())?;
 
-    let frames: Array = seq
-        .frames
-        .iter()
-        .map(|f| -> JsValue {
-            object(&[
-                ("index", (f.index as f64).into()),
-                ("timestamp", f.timestamp.into()),
-                (
-                    "colour",
-                    f.colour.as_deref().map_or(JsValue::NULL, JsValue::from_str),
-                ),
-                ("depth", f.depth.as_str().into()),
-                (
-                    "confidence",
-                    f.confidence
-                        .as_deref()
-                        .map_or(JsValue::NULL, JsValue::from_str),
-                ),
-                (
-                    "poseFile",
-                    f.pose_file
-                        .as_deref()
-                        .map_or(JsValue::NULL, JsValue::from_str),
-                ),
-                (
-                    "missing",
-                    f.missing
-                        .as_ref()
-                        .map_or(JsValue::NULL, |e| JsValue::from_str(&e.to_string())),
-                ),
-            ])
-            .into()
-        })
-        .collect();
+    let frames: Array = seq.frames.iter().map(frame_to_js).collect();
     let ground_truth: Array = seq
         .ground_truth
         .iter()
@@ -134,21 +101,13 @@ pub fn parse_sequence(
         .iter()
         .map(|(t, pose)| tum_row(*t, pose))
         .collect();
-    let intrinsics: JsValue = seq.intrinsics.map_or(JsValue::NULL, |k| {
-        object(&[
-            ("fx", f64::from(k.fx).into()),
-            ("fy", f64::from(k.fy).into()),
-            ("cx", f64::from(k.cx).into()),
-            ("cy", f64::from(k.cy).into()),
-            ("width", (k.width as f64).into()),
-            ("height", (k.height as f64).into()),
-        ])
-        .into()
-    });
     Ok(object(&[
         ("kind", kind_name(seq.kind).into()),
         ("preset", seq.preset.name().into()),
-        ("intrinsics", intrinsics),
+        (
+            "intrinsics",
+            seq.intrinsics.map_or(JsValue::NULL, intrinsics_to_js),
+        ),
         ("frames", frames.into()),
         ("groundTruth", ground_truth.into()),
         ("groundTruthTum", tum_text(&seq.ground_truth).into()),
@@ -156,6 +115,40 @@ pub fn parse_sequence(
         ("odometryTum", tum_text(&seq.odometry).into()),
     ])
     .into())
+}
+
+/// One frame of `parseSequence`'s `frames`: `{index, timestamp, colour,
+/// depth, confidence, poseFile, missing}` (`null` for an absent path).
+fn frame_to_js(f: &dataset::FrameEntry) -> JsValue {
+    let path = |p: &Option<String>| p.as_deref().map_or(JsValue::NULL, JsValue::from_str);
+    object(&[
+        ("index", (f.index as f64).into()),
+        ("timestamp", f.timestamp.into()),
+        ("colour", path(&f.colour)),
+        ("depth", f.depth.as_str().into()),
+        ("confidence", path(&f.confidence)),
+        ("poseFile", path(&f.pose_file)),
+        (
+            "missing",
+            f.missing
+                .as_ref()
+                .map_or(JsValue::NULL, |e| JsValue::from_str(&e.to_string())),
+        ),
+    ])
+    .into()
+}
+
+/// A calibration file's intrinsics: `{fx, fy, cx, cy, width, height}`, pixels.
+fn intrinsics_to_js(k: crate::camera::Intrinsics) -> JsValue {
+    object(&[
+        ("fx", f64::from(k.fx).into()),
+        ("fy", f64::from(k.fy).into()),
+        ("cx", f64::from(k.cx).into()),
+        ("cy", f64::from(k.cy).into()),
+        ("width", (k.width as f64).into()),
+        ("height", (k.height as f64).into()),
+    ])
+    .into()
 }
 
 /// `ateTum(estimateTum, groundTruthTum, maxDt = 0.02)`: absolute trajectory
