@@ -330,6 +330,30 @@ fn stray_colour_frames_extracted_from_the_video_are_scaled_to_the_depth() {
     assert!(frame.rgb.iter().any(|&c| c.abs_diff(128) > 20));
 }
 
+#[test]
+fn realsense_sizes_of_the_d400_run() {
+    for (width, height) in [(848, 480), (1280, 720)] {
+        let dir = scratch(&format!("realsense-{width}"));
+        let f = 0.95 * width as f32 / 1.4;
+        let k = Intrinsics::new(
+            f,
+            f,
+            width as f32 / 2.0 - 0.5,
+            height as f32 / 2.0 - 0.5,
+            width,
+            height,
+        );
+        write_realsense(&dir.0, &k, 3);
+        let out = dir.0.join("estimate.txt");
+        let a = run_cli(&dir.0, &out);
+        assert_eq!(a.code, 0, "{width}x{height}: {}\n{}", a.stdout, a.stderr);
+        assert!(a.stdout.contains(": 3 frames, 3 tracked"), "{}", a.stdout);
+        assert!(!a.stderr.contains("warning"), "{}", a.stderr);
+        let text = std::fs::read_to_string(&out).unwrap();
+        assert_eq!(trajectory::parse_tum(&text, "estimate").unwrap().len(), 3);
+    }
+}
+
 fn open_err(dir: &Path) -> DatasetError {
     Sequence::open(dir).expect_err("refused")
 }
