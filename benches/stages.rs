@@ -39,7 +39,7 @@ fn frames() -> (SlamConfig, Vec<PngPair>) {
             .take(MAP_FRAMES + 1)
             .map(|f| {
                 let read = |name: &str| std::fs::read(dir.join(name)).expect("readable frame");
-                (read(&f.colour), read(&f.depth))
+                (read(f.colour.as_deref().expect("colour")), read(&f.depth))
             })
             .collect();
         return (SlamConfig::from_preset(CameraPreset::TumFr3), bytes);

@@ -301,16 +301,29 @@ pub enum CameraPreset {
     IclNuim,
     /// Microsoft 7-Scenes (Kinect v1), 640x480, depth millimetres, 65535 invalid.
     SevenScenes,
+    /// Intel RealSense D400 (active stereo, depth aligned to colour), as
+    /// Open3D's `realsense_recorder.py` records it: depth millimetres (the
+    /// default depth unit), 0.2 to 5 m; intrinsics typical of a D435's
+    /// colour camera at 640x480, replaced by the folder's
+    /// `camera_intrinsic.json` (any size: 640x480, 848x480, 1280x720).
+    RealSenseD400,
+    /// iPhone / iPad LiDAR as the Stray Scanner app exports it (ARKit
+    /// depth): 256x192 depth in millimetres, 0.2 to 5 m; intrinsics typical
+    /// of an iPhone Pro scaled to 256x192, replaced by the folder's
+    /// `camera_matrix.csv`.
+    StrayLidar,
 }
 
 impl CameraPreset {
     /// All presets, in a stable order.
-    pub const ALL: [CameraPreset; 5] = [
+    pub const ALL: [CameraPreset; 7] = [
         Self::TumFr1,
         Self::TumFr2,
         Self::TumFr3,
         Self::IclNuim,
         Self::SevenScenes,
+        Self::RealSenseD400,
+        Self::StrayLidar,
     ];
 
     /// Short name used by the CLI, the wasm API and the page (`tum-fr3`, `icl-nuim`, ...).
@@ -322,6 +335,8 @@ impl CameraPreset {
             Self::TumFr3 => "tum-fr3",
             Self::IclNuim => "icl-nuim",
             Self::SevenScenes => "7-scenes",
+            Self::RealSenseD400 => "realsense-d400",
+            Self::StrayLidar => "stray-lidar",
         }
     }
 
@@ -331,19 +346,36 @@ impl CameraPreset {
         Self::ALL.into_iter().find(|p| p.name() == name)
     }
 
-    /// Intrinsics at 640x480, pixels.
+    /// Intrinsics at the preset's image size (640x480, Stray Scanner's
+    /// depth 256x192), pixels. For the presets whose folders carry their
+    /// own calibration ([`Self::calibrated_by_layout`]) these are only
+    /// typical values: the sequence's [`crate::dataset::Sequence::intrinsics`] win.
     #[must_use]
     pub fn intrinsics(self) -> Intrinsics {
-        let (fx, fy, cx, cy) = match self {
-            Self::TumFr1 => (517.3, 516.5, 318.6, 255.3),
-            Self::TumFr2 => (520.9, 521.0, 325.1, 249.7),
-            Self::TumFr3 => (535.4, 539.2, 320.1, 247.6),
+        let (fx, fy, cx, cy, width, height) = match self {
+            Self::TumFr1 => (517.3, 516.5, 318.6, 255.3, 640, 480),
+            Self::TumFr2 => (520.9, 521.0, 325.1, 249.7, 640, 480),
+            Self::TumFr3 => (535.4, 539.2, 320.1, 247.6, 640, 480),
             // ICL-NUIM's ground truth is expressed for fy = -480: using it as
             // given makes the estimate directly comparable with the dataset's poses.
-            Self::IclNuim => (481.20, -480.0, 319.5, 239.5),
-            Self::SevenScenes => (585.0, 585.0, 320.0, 240.0),
+            Self::IclNuim => (481.20, -480.0, 319.5, 239.5, 640, 480),
+            Self::SevenScenes => (585.0, 585.0, 320.0, 240.0, 640, 480),
+            // A D435's colour camera at 640x480 (depth aligned to it).
+            Self::RealSenseD400 => (615.0, 615.0, 320.0, 240.0, 640, 480),
+            // An iPhone 13 Pro's colour camera at 1920x1440 (fx 1597,
+            // cx 960, cy 720) scaled by 256 / 1920.
+            Self::StrayLidar => (213.0, 213.0, 128.0, 96.0, 256, 192),
         };
-        Intrinsics::new(fx, fy, cx, cy, 640, 480)
+        Intrinsics::new(fx, fy, cx, cy, width, height)
+    }
+
+    /// Whether the folders of this preset's layout carry their own
+    /// calibration (RealSense's `camera_intrinsic.json`, Stray Scanner's
+    /// `camera_matrix.csv`): then [`Self::intrinsics`] is only a typical
+    /// value and focal lengths far from it are no sign of a mistake.
+    #[must_use]
+    pub fn calibrated_by_layout(self) -> bool {
+        matches!(self, Self::RealSenseD400 | Self::StrayLidar)
     }
 
     /// Depth noise model this preset's sequences are tracked and fused with
@@ -364,6 +396,11 @@ impl CameraPreset {
     ///   (a close object, 1-2 m) from 0.673 to 0.767 cm ATE at stride 1
     ///   (strides 2/3/5/8: 0.822/0.828/0.823/0.802 cm); choose it with
     ///   `--noise kinect-v1`.
+    /// - RealSense D400: active stereo
+    ///   ([`SensorNoise::active_stereo`](crate::noise::SensorNoise::active_stereo)),
+    ///   depth error growing with z^2 like any stereo camera's.
+    /// - Stray Scanner (ARKit LiDAR):
+    ///   [`SensorNoise::lidar`](crate::noise::SensorNoise::lidar).
     #[must_use]
     pub fn sensor_noise(self) -> crate::noise::SensorNoise {
         use crate::noise::SensorNoise;
@@ -371,6 +408,8 @@ impl CameraPreset {
             Self::TumFr1 | Self::TumFr2 | Self::TumFr3 => SensorNoise::uniform(),
             Self::SevenScenes => SensorNoise::kinect_v1(),
             Self::IclNuim => SensorNoise::simulated_kinect(),
+            Self::RealSenseD400 => SensorNoise::active_stereo(),
+            Self::StrayLidar => SensorNoise::lidar(),
         }
     }
 
@@ -386,6 +425,15 @@ impl CameraPreset {
     }
 
     /// Depth conversion for this camera: units per metre, valid range (m), invalid raw value.
+    ///
+    /// RealSense D400: millimetres (the recorder's default depth unit),
+    /// 0.2 to 5 m. Its minimum distance is 0.1 to 0.3 m depending on the
+    /// resolution (0.2 m at 848x480), and its RMS error, about 2 % at 2 m,
+    /// grows with z^2: 4 cm at 2 m, 16 cm at 4 m, 25 cm at 5 m; beyond 5 m
+    /// a measurement is worth less than the surfels it would disturb (the
+    /// recorder's own reconstruction stops at 3 m).
+    /// Stray Scanner (ARKit LiDAR): millimetres, 0.2 to 5 m, the LiDAR's
+    /// specified range (ARKit fills the 256x192 map beyond it with guesses).
     #[must_use]
     pub fn depth_settings(self) -> crate::frame::DepthSettings {
         use crate::frame::DepthSettings;
@@ -407,6 +455,12 @@ impl CameraPreset {
                 min_m: 0.3,
                 max_m: 4.0,
                 invalid_raw: Some(65535),
+            },
+            Self::RealSenseD400 | Self::StrayLidar => DepthSettings {
+                scale: 1000.0,
+                min_m: 0.2,
+                max_m: 5.0,
+                invalid_raw: None,
             },
         }
     }

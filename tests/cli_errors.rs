@@ -416,7 +416,7 @@ fn bad_command_lines_exit_2_naming_the_option() {
         "[default: 3]",
         "[default: 4000000]",
         "--depth-max <DEPTH_MAX>",
-        "4 tum-fr1/tum-fr2/tum-fr3/7-scenes, 8 icl-nuim]",
+        "4 tum-fr1/tum-fr2/tum-fr3/7-scenes, 8 icl-nuim, 5 realsense-d400/stray-lidar]",
         "-480 icl-nuim",
     ] {
         assert!(

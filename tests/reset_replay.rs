@@ -20,7 +20,8 @@ use surfel_slam::{Pipeline, SlamConfig};
 /// module takes); returns the ATE in metres and the surfels held.
 fn run(slam: &mut Pipeline, dir: &std::path::Path, sequence: &Sequence) -> (f64, usize) {
     for entry in &sequence.frames {
-        let colour = std::fs::read(dir.join(&entry.colour)).expect("colour file");
+        let colour =
+            std::fs::read(dir.join(entry.colour.as_deref().expect("colour"))).expect("colour file");
         let depth = std::fs::read(dir.join(&entry.depth)).expect("depth file");
         let r = slam
             .push_png(&colour, &depth, entry.timestamp)

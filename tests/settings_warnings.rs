@@ -33,7 +33,9 @@ fn warnings_on(
         .map(ToString::to_string)
         .collect();
     for entry in sequence.frames.iter().take(frames) {
-        let colour = source.read(&entry.colour).expect("colour");
+        let colour = source
+            .read(entry.colour.as_deref().expect("a colour image"))
+            .expect("colour");
         let depth = source.read(&entry.depth).expect("depth");
         let report = slam
             .push_png(&colour, &depth, entry.timestamp)

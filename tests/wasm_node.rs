@@ -305,7 +305,11 @@ fn real_frames_track_and_match_native() {
 
     let mut slam = Slam::new(JsValue::from_str(sequence.preset.name())).expect("preset");
     for entry in sequence.frames.iter().take(REAL_FRAMES) {
-        let colour = read_file(&format!("{dir}/{}", entry.colour)).expect("colour");
+        let colour = read_file(&format!(
+            "{dir}/{}",
+            entry.colour.as_deref().expect("colour")
+        ))
+        .expect("colour");
         let depth = read_file(&format!("{dir}/{}", entry.depth)).expect("depth");
         let r = slam
             .push_frame(&colour, &depth, entry.timestamp)

@@ -215,7 +215,8 @@ fn real_frames_reference() {
     let trajectory = single_thread(|| {
         let mut pipeline = Pipeline::new(config.clone()).expect("valid config");
         for entry in sequence.frames.iter().take(REAL_FRAMES) {
-            let colour = std::fs::read(dir.join(&entry.colour)).expect("colour");
+            let colour =
+                std::fs::read(dir.join(entry.colour.as_deref().expect("colour"))).expect("colour");
             let depth = std::fs::read(dir.join(&entry.depth)).expect("depth");
             let r = pipeline
                 .push_png(&colour, &depth, entry.timestamp)

@@ -244,6 +244,8 @@ async function load({ name, entries, autoplay, options }) {
   if (parsed.preset && typeof parsed.preset === 'object') Object.assign(newConfig, parsed.preset);
   delete newConfig.name;
   newConfig.preset = preset;
+  // RealSense and Stray Scanner folders carry their own calibration: it wins over the preset's.
+  if (parsed.intrinsics) Object.assign(newConfig, parsed.intrinsics);
   // The page's own choices carry over to a new sequence.
   for (const key of ['tracker', 'halfResolution', 'noise', 'loopClosure']) if (options?.[key] !== undefined) newConfig[key] = options[key];
   let continued = null;

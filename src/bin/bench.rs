@@ -153,7 +153,7 @@ fn play(
         }
         Err(e) => {
             counts.failed += 1;
-            eprintln!("frame {i} ({}) skipped: {e}", sequence.frames[k].colour);
+            eprintln!("frame {i} ({}) skipped: {e}", sequence.frames[k].depth);
             None
         }
     }
@@ -187,13 +187,22 @@ fn read_sequence(args: &BenchArgs) -> Result<(Sequence, Vec<PngPair>)> {
     if sequence.frames.is_empty() {
         bail!("{} holds no frames", args.dataset.display());
     }
+    if sequence.frames[0].confidence.is_some() || sequence.is_depth_only() {
+        bail!(
+            "{}: bench times colour and depth PNG pairs; this {} sequence (depth only or with \
+             confidence images) runs with `surfel-slam run`",
+            args.dataset.display(),
+            sequence.kind.name()
+        );
+    }
     let mut bytes = Vec::with_capacity(sequence.frames.len());
     for entry in &sequence.frames {
         let read = |name: &str| {
             let path = args.dataset.join(name);
             std::fs::read(&path).with_context(|| format!("reading {}", path.display()))
         };
-        bytes.push((read(&entry.colour)?, read(&entry.depth)?));
+        let colour = entry.colour.as_deref().unwrap_or_default();
+        bytes.push((read(colour)?, read(&entry.depth)?));
     }
     Ok((sequence, bytes))
 }

@@ -362,9 +362,12 @@ fn track_frames(
             .map_err(anyhow::Error::from)
             .and_then(|f| {
                 let t0 = std::time::Instant::now();
-                let r = slam
-                    .push_frame(&f, entry.timestamp)
-                    .with_context(|| format!("{} + {}", entry.colour, entry.depth))?;
+                let r =
+                    slam.push_frame(&f, entry.timestamp)
+                        .with_context(|| match &entry.colour {
+                            Some(colour) => format!("{colour} + {}", entry.depth),
+                            None => entry.depth.clone(),
+                        })?;
                 Ok((r, t0.elapsed().as_secs_f64() * 1000.0))
             });
         match result {
@@ -516,12 +519,13 @@ fn print_summary(
             Err(e) => format!("ATE n/a ({e})"),
         }
     };
+    let odometry = odometry_comparison(sequence, slam);
     let warnings = match slam.settings_warnings().len() {
         0 => String::new(),
         n => format!(", {n} camera-settings warning(s) (see above)"),
     };
     println!(
-        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {failed} unreadable, {} loop closures ({} global), {} surfels, {accuracy}, {mean:.1} ms/frame (median {median:.1}){warnings}",
+        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {failed} unreadable, {} loop closures ({} global), {} surfels, {accuracy}{odometry}, {mean:.1} ms/frame (median {median:.1}){warnings}",
         args.dataset.display(),
         frames,
         counts.tracked,
@@ -532,6 +536,24 @@ fn print_summary(
         slam.global_loop_closures(),
         slam.map().live_len(),
     );
+}
+
+/// The summary's comparison with the recording device's own trajectory
+/// (Stray Scanner's ARKit odometry), `""` when the sequence has none: the
+/// RMS distance between the two after rigid alignment, as ATE is computed,
+/// but not an error: the odometry drifts too.
+fn odometry_comparison(sequence: &Sequence, slam: &Pipeline) -> String {
+    if sequence.odometry.is_empty() {
+        return String::new();
+    }
+    match ate(slam.trajectory(), &sequence.odometry, MAX_DT) {
+        Ok(a) => format!(
+            ", difference from the device's odometry {} RMS ({} poses; odometry, not ground truth)",
+            evaluate::cm(a.rmse_m),
+            a.pairs
+        ),
+        Err(e) => format!(", difference from the device's odometry n/a ({e})"),
+    }
 }
 
 /// The summary line of a `--localise` run: frames placed (how), unplaced,

@@ -48,7 +48,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Track and fuse a TUM, ICL-NUIM or 7-Scenes folder.
+    /// Track and fuse a TUM, ICL-NUIM, 7-Scenes, RealSense or Stray Scanner folder.
     Run(run::RunArgs),
     /// Time every stage over a sequence (files preloaded; decode included):
     /// medians per stage and per frame, peak memory.
@@ -88,10 +88,12 @@ pub(crate) struct TrackingArgs {
     )]
     icp_weight: f64,
     /// Depth noise model weighting tracking and fusion: kinect-v1,
-    /// structured-light, simulated-kinect, rendered, uniform (no weighting), or coefficients
+    /// structured-light, simulated-kinect, active-stereo, lidar, rendered,
+    /// uniform (no weighting), or coefficients
     /// `base,quadratic[,offset[,angle[,lateral_px[,edge]]]]` of
     /// sigma_z = base + quadratic (z - offset)^2 (metres) [default: preset's:
-    /// uniform for tum-fr1/tum-fr2/tum-fr3, kinect-v1 for 7-scenes; icl-nuim:
+    /// uniform for tum-fr1/tum-fr2/tum-fr3, kinect-v1 for 7-scenes,
+    /// active-stereo for realsense-d400, lidar for stray-lidar; icl-nuim:
     /// rendered when the first frame's depth is clean, else simulated-kinect].
     #[arg(long, value_parser = noise_parser)]
     noise: Option<SensorNoise>,
@@ -463,7 +465,12 @@ pub(crate) fn config_for(
     o: &CameraOverrides,
     tracking: &TrackingArgs,
 ) -> Result<SlamConfig> {
-    let mut config = SlamConfig::from_preset(o.preset.unwrap_or(sequence.preset));
+    let preset = o.preset.unwrap_or(sequence.preset);
+    let mut config = SlamConfig::from_preset(preset);
+    // The folder's own calibration file, unless another camera was chosen.
+    if let (true, Some(k)) = (preset == sequence.preset, sequence.intrinsics) {
+        config.intrinsics = k;
+    }
     let k = &mut config.intrinsics;
     k.fx = o.fx.unwrap_or(k.fx);
     k.fy = o.fy.unwrap_or(k.fy);
@@ -474,6 +481,18 @@ pub(crate) fn config_for(
     d.min_m = o.depth_min.unwrap_or(d.min_m);
     d.max_m = o.depth_max.unwrap_or(d.max_m);
     tracking.apply(&mut config);
+    if sequence.is_depth_only() {
+        let instead = match config.tracker.mode {
+            TrackerMode::Icp => String::new(),
+            other => format!(", not --tracker {}", other.name()),
+        };
+        config.tracker.mode = TrackerMode::Icp;
+        eprintln!(
+            "note: this {} sequence has no colour images: tracking on depth alone (icp{instead}), \
+             the map coloured grey",
+            sequence.kind.name()
+        );
+    }
     // Refuse bad camera settings before reading any image.
     config.validate()?;
     Ok(config)

@@ -35,7 +35,8 @@ pub(crate) fn parse(
         &layout.root_prefix,
     )?;
     for frame in &mut frames {
-        frame.missing = check_listed(listing, &frame.colour, assoc_name)
+        let colour = frame.colour.as_deref().unwrap_or_default();
+        frame.missing = check_listed(listing, colour, assoc_name)
             .or_else(|| check_listed(listing, &frame.depth, assoc_name));
     }
     frames.sort_by(|a, b| a.timestamp.total_cmp(&b.timestamp));
@@ -73,8 +74,10 @@ pub fn parse_associations(
         frames.push(FrameEntry {
             index: frames.len(),
             timestamp: t1,
-            colour: format!("{root_prefix}{colour}"),
+            colour: Some(format!("{root_prefix}{colour}")),
             depth: format!("{root_prefix}{depth}"),
+            confidence: None,
+            calibrated_size: None,
             pose_file: None,
             missing: None,
         });
@@ -128,7 +131,7 @@ mod tests {
         assert!(seq.preset.intrinsics().fy < 0.0);
         let numbers: Vec<f64> = seq.frames.iter().map(|f| f.timestamp).collect();
         assert_eq!(numbers, vec![1.0, 2.0, 10.0]);
-        assert_eq!(seq.frames[1].colour, "rgb/2.png");
+        assert_eq!(seq.frames[1].colour.as_deref(), Some("rgb/2.png"));
         assert_eq!(seq.frames[1].depth, "depth/2.png");
         assert_eq!(seq.frames[2].index, 2);
         assert_eq!(seq.ground_truth.len(), 2);

@@ -1,5 +1,6 @@
-//! RGB-D dataset loaders (TUM RGB-D, ICL-NUIM, Microsoft 7-Scenes) and the
-//! trajectory files (the surfel map's PLY file is in [`crate::mesh::surfel_ply`]).
+//! RGB-D dataset loaders (TUM RGB-D, ICL-NUIM, Microsoft 7-Scenes, Intel
+//! RealSense as Open3D's recorder writes it, iPhone LiDAR as the Stray
+//! Scanner app exports it) and the trajectory files (the surfel map's PLY file is in [`crate::mesh::surfel_ply`]).
 //!
 //! Parsing works in two pure steps on strings so that the browser (which only
 //! has a list of file names and can read text files on request) and the native
@@ -18,14 +19,17 @@
 //! [`Layout::root_prefix`] and is already included in the returned paths.
 //!
 //! Poses are `world_from_camera` (camera-to-world, as the datasets publish
-//! them), metres, timestamps in seconds (TUM) or frame numbers (ICL-NUIM,
-//! 7-Scenes).
+//! them), metres, timestamps in seconds (TUM, Stray Scanner) or frame
+//! numbers (ICL-NUIM, 7-Scenes, RealSense).
 
 pub mod archive;
+mod decode;
 pub mod icl_nuim;
 mod lines;
 mod open;
+pub mod realsense;
 pub mod seven_scenes;
+pub mod stray;
 pub mod trajectory;
 pub mod tum;
 
@@ -34,11 +38,12 @@ use std::collections::HashMap;
 use glam::DAffine3;
 use thiserror::Error;
 
-use crate::camera::CameraPreset;
+use crate::camera::{CameraPreset, Intrinsics};
 use crate::frame::FrameError;
 
 pub use archive::{ArchiveFormat, ArchiveReader};
-pub use open::{decode_frame, list_files, read_frame, DatasetSource};
+pub use decode::{decode_frame, decode_frame_bytes, FrameBytes, DEPTH_ONLY_GREY};
+pub use open::{list_files, read_frame, DatasetSource};
 pub use seven_scenes::parse_pose_matrix;
 
 /// Why a dataset could not be read; every variant names the file concerned.
@@ -100,6 +105,40 @@ pub enum DatasetError {
         /// What is wrong with it.
         message: String,
     },
+    /// A calibration file (RealSense `camera_intrinsic.json`) is not what
+    /// its layout writes.
+    #[error("{path}: {reason}")]
+    Calibration {
+        /// The calibration file.
+        path: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// An image is not the size the layout's calibration file gives.
+    #[error("{path} is {width}x{height} pixels, but {calibration} gives {expected_width}x{expected_height}")]
+    ImageSize {
+        /// The image file.
+        path: String,
+        /// Its width, pixels.
+        width: usize,
+        /// Its height, pixels.
+        height: usize,
+        /// The width expected, pixels.
+        expected_width: usize,
+        /// The height expected, pixels.
+        expected_height: usize,
+        /// The calibration file (or the layout) that gives the size.
+        calibration: String,
+    },
+    /// A confidence image (Stray Scanner `confidence/NNNNNN.png`) is not an
+    /// 8-bit single-channel image.
+    #[error("{path}: {reason}")]
+    Confidence {
+        /// The confidence image.
+        path: String,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// An image of a frame could not be decoded.
     #[error("{path}: {source}")]
     Frame {
@@ -121,16 +160,28 @@ pub enum DatasetKind {
     /// Microsoft 7-Scenes: `frame-NNNNNN.{color.png|color.jpg,depth.png,pose.txt}`,
     /// in `seq-XX/` folders or flat.
     SevenScenes,
+    /// Intel RealSense as Open3D's `realsense_recorder.py` writes it:
+    /// `color/NNNNNN.jpg` (or `.png`), `depth/NNNNNN.png`,
+    /// `camera_intrinsic.json`.
+    RealSense,
+    /// iPhone / iPad LiDAR as the Stray Scanner app exports it:
+    /// `depth/NNNNNN.png`, `confidence/NNNNNN.png`, `camera_matrix.csv`,
+    /// `odometry.csv`, optional `rgb/NNNNNN.jpg` (frames extracted from
+    /// `rgb.mp4`).
+    StrayScanner,
 }
 
 impl DatasetKind {
-    /// Short human-readable name (`TUM RGB-D`, `ICL-NUIM`, `7-Scenes`).
+    /// Short human-readable name (`TUM RGB-D`, `ICL-NUIM`, `7-Scenes`,
+    /// `RealSense`, `Stray Scanner`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
             Self::Tum => "TUM RGB-D",
             Self::IclNuim => "ICL-NUIM",
             Self::SevenScenes => "7-Scenes",
+            Self::RealSense => "RealSense",
+            Self::StrayScanner => "Stray Scanner",
         }
     }
 }
@@ -146,7 +197,9 @@ pub struct Layout {
     /// Text files [`parse_sequence`] needs, full names as in the listing
     /// (TUM: rgb.txt, depth.txt, groundtruth.txt if present; ICL-NUIM: the
     /// associations file and the `*.gt.freiburg` if present; 7-Scenes: every
-    /// per-frame `.pose.txt`, the ground truth, each optional).
+    /// per-frame `.pose.txt`, the ground truth, each optional; RealSense:
+    /// `camera_intrinsic.json`; Stray Scanner: `camera_matrix.csv` and
+    /// `odometry.csv`).
     pub index_files: Vec<String>,
 }
 
@@ -155,19 +208,41 @@ pub struct Layout {
 pub struct FrameEntry {
     /// Position in the sequence, 0-based.
     pub index: usize,
-    /// Seconds (TUM, the colour image's timestamp) or frame number (ICL-NUIM,
-    /// 7-Scenes).
+    /// Seconds (TUM, the colour image's timestamp; Stray Scanner, the
+    /// odometry's) or frame number (ICL-NUIM, 7-Scenes, RealSense).
     pub timestamp: f64,
-    /// Colour image path, as in the listing.
-    pub colour: String,
+    /// Colour image path, as in the listing; `None` for a depth-only
+    /// sequence (Stray Scanner without an `rgb/` folder): the frame is
+    /// decoded with a constant grey image.
+    pub colour: Option<String>,
     /// Depth image path, as in the listing.
     pub depth: String,
+    /// Per-pixel confidence image (Stray Scanner `confidence/NNNNNN.png`,
+    /// 8-bit, 0 low, 1 medium, 2 high), as in the listing: depth whose
+    /// confidence is 0 is dropped at decode.
+    pub confidence: Option<String>,
+    /// The depth image's size as the layout's calibration file gives it
+    /// (RealSense, Stray Scanner): an image of another size is refused at
+    /// decode ([`DatasetError::ImageSize`]). `None` for layouts whose camera
+    /// is a preset.
+    pub calibrated_size: Option<CalibratedSize>,
     /// Per-frame pose file (7-Scenes `.pose.txt`), as in the listing.
     pub pose_file: Option<String>,
     /// Why the frame cannot be read, known from the listing alone (an image
     /// its index names is absent: a half-copied dataset). Reading the frame
     /// returns this error, so it is skipped like an undecodable one.
     pub missing: Option<DatasetError>,
+}
+
+/// The image size a layout's calibration file gives, and that file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CalibratedSize {
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// The file the size comes from (named in errors).
+    pub file: String,
 }
 
 /// A parsed sequence: camera, frames in time order, ground truth if known.
@@ -177,11 +252,23 @@ pub struct Sequence {
     pub kind: DatasetKind,
     /// Camera calibration and depth conversion to use.
     pub preset: CameraPreset,
+    /// The intrinsics of the depth images from the folder's own calibration
+    /// file (RealSense `camera_intrinsic.json`; Stray Scanner
+    /// `camera_matrix.csv` scaled from the colour camera's 1920x1440 to the
+    /// depth's 256x192), pixels; they win over [`Self::preset`]'s. `None`
+    /// for layouts whose camera is a preset.
+    pub intrinsics: Option<Intrinsics>,
     /// Frames, in time order.
     pub frames: Vec<FrameEntry>,
     /// Ground truth `(timestamp, world_from_camera)`, sorted by timestamp,
     /// metres; empty when the dataset folder has none.
     pub ground_truth: Vec<(f64, DAffine3)>,
+    /// The recording device's own trajectory `(timestamp, world_from_camera)`
+    /// (Stray Scanner's `odometry.csv`, ARKit's visual-inertial odometry),
+    /// sorted by timestamp, metres, camera axes as ours (x right, y down, z
+    /// forward). Not ground truth: a reference to compare with, which
+    /// drifts too. Empty for other layouts.
+    pub odometry: Vec<(f64, DAffine3)>,
     /// Problems that did not stop the sequence (e.g. a 7-Scenes pose file that
     /// could not be read: that frame has no ground truth).
     pub warnings: Vec<DatasetError>,
@@ -292,6 +379,9 @@ pub fn detect_layout(file_names: &[String]) -> Result<Layout, DatasetError> {
             index_files,
         });
     }
+    if let Some(layout) = detect_sensor_layout(&top, &names, &root_prefix) {
+        return Ok(layout);
+    }
     let mut sample: Vec<&str> = names.iter().take(5).copied().collect();
     if names.len() > 5 {
         sample.push("...");
@@ -300,10 +390,38 @@ pub fn detect_layout(file_names: &[String]) -> Result<Layout, DatasetError> {
         hint: format!(
             "expected rgb.txt + depth.txt (TUM RGB-D), an associations .txt (ICL-NUIM) or \
              frame-NNNNNN.color.png or .color.jpg beside frame-NNNNNN.depth.png (7-Scenes; \
-             in seq-XX/ folders or flat); found {} file(s): {}",
+             in seq-XX/ folders or flat), camera_intrinsic.json + depth/NNNNNN.png (RealSense) \
+             or camera_matrix.csv + odometry.csv + depth/NNNNNN.png (Stray Scanner); \
+             found {} file(s): {}",
             names.len(),
             sample.join(", ")
         ),
+    })
+}
+
+/// The layouts of a sensor's own recording tools, recognised by their
+/// calibration files (`top`: the names directly in `root_prefix`) beside a
+/// `depth/NNNNNN.png`: RealSense (Open3D's recorder) and Stray Scanner.
+fn detect_sensor_layout(top: &[&str], names: &[&str], root_prefix: &str) -> Option<Layout> {
+    let full = |n: &str| format!("{root_prefix}{n}");
+    let (kind, index_files) = if top.contains(&"camera_intrinsic.json") {
+        (DatasetKind::RealSense, vec![full("camera_intrinsic.json")])
+    } else if top.contains(&"camera_matrix.csv") && top.contains(&"odometry.csv") {
+        (
+            DatasetKind::StrayScanner,
+            vec![full("camera_matrix.csv"), full("odometry.csv")],
+        )
+    } else {
+        return None;
+    };
+    let has_depth = match kind {
+        DatasetKind::RealSense => realsense::has_frames(names, root_prefix),
+        _ => stray::has_frames(names, root_prefix),
+    };
+    has_depth.then(|| Layout {
+        kind,
+        root_prefix: root_prefix.to_owned(),
+        index_files,
     })
 }
 
@@ -342,6 +460,8 @@ pub fn parse_sequence(
         .iter()
         .map(|n| n.trim_start_matches("./"))
         .collect();
+    let mut intrinsics = None;
+    let mut odometry = Vec::new();
     let (preset, frames, mut ground_truth) = match layout.kind {
         DatasetKind::Tum => {
             let (frames, gt) = tum::parse(layout, &listing, index_texts)?;
@@ -369,6 +489,17 @@ pub fn parse_sequence(
             let (frames, gt) = seven_scenes::parse(&listing, index_texts)?;
             (CameraPreset::SevenScenes, frames, gt)
         }
+        DatasetKind::RealSense => {
+            let (k, frames) = realsense::parse(layout, &listing, index_texts)?;
+            intrinsics = Some(k);
+            (CameraPreset::RealSenseD400, frames, Vec::new())
+        }
+        DatasetKind::StrayScanner => {
+            let parsed = stray::parse(layout, &listing, index_texts)?;
+            intrinsics = Some(parsed.intrinsics);
+            odometry = parsed.odometry;
+            (CameraPreset::StrayLidar, parsed.frames, Vec::new())
+        }
     };
     if frames.is_empty() {
         return Err(DatasetError::NoFrames);
@@ -382,11 +513,14 @@ pub fn parse_sequence(
         }
     }
     ground_truth.sort_by(|a, b| a.0.total_cmp(&b.0));
+    odometry.sort_by(|a, b| a.0.total_cmp(&b.0));
     Ok(Sequence {
         kind: layout.kind,
         preset,
+        intrinsics,
         frames,
         ground_truth,
+        odometry,
         warnings: Vec::new(),
     })
 }
@@ -403,7 +537,59 @@ pub(crate) fn check_listed(
     })
 }
 
+/// Frame number of a name `NNNNNN.<ext>` (digits only before the dot, one
+/// of `extensions`), as RealSense and Stray Scanner name their images.
+pub(crate) fn numbered(file_name: &str, extensions: &[&str]) -> Option<u64> {
+    let (digits, ext) = file_name.rsplit_once('.')?;
+    if digits.is_empty()
+        || !digits.bytes().all(|b| b.is_ascii_digit())
+        || !extensions.iter().any(|e| e.eq_ignore_ascii_case(ext))
+    {
+        return None;
+    }
+    digits.parse().ok()
+}
+
+/// Frame number -> path of the images `NNNNNN.<ext>` directly in folder
+/// `folder` (`root_prefix` + e.g. `depth/`), the first extension of
+/// `extensions` winning when a number has several.
+pub(crate) fn numbered_in<'a>(
+    listing: &std::collections::HashSet<&'a str>,
+    folder: &str,
+    extensions: &[&str],
+) -> std::collections::BTreeMap<u64, &'a str> {
+    let mut out: std::collections::BTreeMap<u64, (usize, &str)> = Default::default();
+    for &name in listing {
+        let Some(rest) = name.strip_prefix(folder) else {
+            continue;
+        };
+        if rest.contains('/') {
+            continue;
+        }
+        let Some(n) = numbered(rest, extensions) else {
+            continue;
+        };
+        let rank = rest
+            .rsplit_once('.')
+            .and_then(|(_, ext)| extensions.iter().position(|e| e.eq_ignore_ascii_case(ext)))
+            .unwrap_or(usize::MAX);
+        let slot = out.entry(n).or_insert((rank, name));
+        if rank < slot.0 || (rank == slot.0 && name < slot.1) {
+            *slot = (rank, name);
+        }
+    }
+    out.into_iter().map(|(n, (_, name))| (n, name)).collect()
+}
+
 impl Sequence {
+    /// Whether no frame has a colour image (Stray Scanner without `rgb/`):
+    /// the frames decode with a constant grey image, so only geometry
+    /// (ICP) can track them.
+    #[must_use]
+    pub fn is_depth_only(&self) -> bool {
+        !self.frames.is_empty() && self.frames.iter().all(|f| f.colour.is_none())
+    }
+
     /// Ground-truth `world_from_camera` nearest in time to `timestamp`, if one
     /// lies within `max_dt` (same unit as the timestamps; inclusive).
     #[must_use]

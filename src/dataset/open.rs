@@ -6,8 +6,9 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 
 use super::archive::{self, ArchiveReader};
+use super::decode::{decode_frame_bytes, FrameBytes};
 use super::{detect_layout, parse_sequence, DatasetError, DatasetKind, FrameEntry, Sequence};
-use crate::frame::{Channel, DepthSettings, FrameError, RgbdFrame};
+use crate::frame::{DepthSettings, RgbdFrame};
 
 /// Lists `dir` recursively (3 levels: the sequence folder, an optional
 /// wrapping folder, and `rgb/`-style sub-folders), names '/' separated and
@@ -180,12 +181,7 @@ impl DatasetSource {
         entry: &FrameEntry,
         settings: &DepthSettings,
     ) -> Result<RgbdFrame, DatasetError> {
-        if let Some(e) = &entry.missing {
-            return Err(e.clone());
-        }
-        let colour = self.read(&entry.colour)?;
-        let depth = self.read(&entry.depth)?;
-        decode_frame(entry, &colour, &depth, settings)
+        read_entry(entry, settings, |name| self.read(name))
     }
 }
 
@@ -196,41 +192,6 @@ fn text(name: &str, bytes: Vec<u8>) -> Result<String, DatasetError> {
     })
 }
 
-/// Decodes a frame's colour and depth bytes (read by any means, e.g. in the
-/// browser), naming the offending file in the error. Depth in metres per
-/// `settings`.
-pub fn decode_frame(
-    entry: &FrameEntry,
-    colour: &[u8],
-    depth: &[u8],
-    settings: &DepthSettings,
-) -> Result<RgbdFrame, DatasetError> {
-    RgbdFrame::from_png_bytes(colour, depth, settings).map_err(|source| {
-        let path = match &source {
-            FrameError::Decode {
-                channel: Channel::Colour,
-                ..
-            }
-            | FrameError::BufferLength {
-                channel: Channel::Colour,
-                ..
-            } => entry.colour.clone(),
-            FrameError::Decode {
-                channel: Channel::Depth,
-                ..
-            }
-            | FrameError::BufferLength {
-                channel: Channel::Depth,
-                ..
-            }
-            | FrameError::DepthNot16Bit { .. }
-            | FrameError::InvalidDepth { .. } => entry.depth.clone(),
-            _ => format!("{} + {}", entry.colour, entry.depth),
-        };
-        DatasetError::Frame { path, source }
-    })
-}
-
 /// Reads and decodes one frame natively; `root` is the directory the
 /// sequence was opened from. Depth in metres per `settings`.
 pub fn read_frame(
@@ -238,10 +199,26 @@ pub fn read_frame(
     entry: &FrameEntry,
     settings: &DepthSettings,
 ) -> Result<RgbdFrame, DatasetError> {
+    read_entry(entry, settings, |name| read_bytes(root, name))
+}
+
+/// Reads the files `entry` names through `read` and decodes them (its
+/// [`FrameEntry::missing`] error if it has one).
+fn read_entry(
+    entry: &FrameEntry,
+    settings: &DepthSettings,
+    mut read: impl FnMut(&str) -> Result<Vec<u8>, DatasetError>,
+) -> Result<RgbdFrame, DatasetError> {
     if let Some(e) = &entry.missing {
         return Err(e.clone());
     }
-    let colour = read_bytes(root, &entry.colour)?;
-    let depth = read_bytes(root, &entry.depth)?;
-    decode_frame(entry, &colour, &depth, settings)
+    let colour = entry.colour.as_deref().map(&mut read).transpose()?;
+    let depth = read(&entry.depth)?;
+    let confidence = entry.confidence.as_deref().map(&mut read).transpose()?;
+    let bytes = FrameBytes {
+        colour: colour.as_deref(),
+        depth: &depth,
+        confidence: confidence.as_deref(),
+    };
+    decode_frame_bytes(entry, &bytes, settings)
 }

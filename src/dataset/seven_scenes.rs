@@ -108,8 +108,10 @@ pub(crate) fn parse(
             frames.push(FrameEntry {
                 index: frames.len(),
                 timestamp,
-                colour,
+                colour: Some(colour),
                 depth,
+                confidence: None,
+                calibrated_size: None,
                 pose_file: listing.contains(pose.as_str()).then_some(pose),
                 missing,
             });
@@ -201,8 +203,14 @@ mod tests {
         assert!(seq.ground_truth.is_empty(), "pose texts not given");
         assert_eq!(seq.preset, CameraPreset::SevenScenes);
         assert_eq!(seq.frames.len(), 6);
-        assert_eq!(seq.frames[0].colour, "chess/seq-01/frame-000000.color.png");
-        assert_eq!(seq.frames[3].colour, "chess/seq-02/frame-000000.color.jpg");
+        assert_eq!(
+            seq.frames[0].colour.as_deref(),
+            Some("chess/seq-01/frame-000000.color.png")
+        );
+        assert_eq!(
+            seq.frames[3].colour.as_deref(),
+            Some("chess/seq-02/frame-000000.color.jpg")
+        );
         assert_eq!(seq.frames[3].depth, "chess/seq-02/frame-000000.depth.png");
         let stamps: Vec<f64> = seq.frames.iter().map(|f| f.timestamp).collect();
         assert_eq!(stamps, vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0]);
@@ -269,7 +277,10 @@ mod tests {
         let seq = parse_sequence(&layout, &half, &HashMap::new(), None).expect("parses");
         assert_eq!(seq.frames.len(), 3);
         assert_eq!(seq.frames[0].missing, None);
-        assert_eq!(seq.frames[1].colour, "seq-01/frame-000008.color.png");
+        assert_eq!(
+            seq.frames[1].colour.as_deref(),
+            Some("seq-01/frame-000008.color.png")
+        );
         assert!(
             matches!(&seq.frames[1].missing, Some(DatasetError::MissingFile { path, .. }) if path == "seq-01/frame-000008.color.png")
         );

@@ -135,8 +135,10 @@ pub(crate) fn parse(
         frames.push(FrameEntry {
             index: frames.len(),
             timestamp: rgb[i].0,
-            colour,
+            colour: Some(colour),
             depth: depth_path,
+            confidence: None,
+            calibrated_size: None,
             pose_file: None,
             missing,
         });
@@ -206,7 +208,7 @@ mod tests {
         assert_eq!(seq.frames.len(), 2);
         assert_eq!(seq.frames[0].timestamp, 1.00);
         assert_eq!(
-            seq.frames[0].colour,
+            seq.frames[0].colour.as_deref().unwrap_or_default(),
             "rgbd_dataset_freiburg1_xyz/rgb/1.00.png"
         );
         assert_eq!(

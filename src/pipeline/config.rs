@@ -145,6 +145,8 @@ impl SlamConfig {
 ///   "Defaults per preset").
 /// - TUM, 7-Scenes: ICP. Joint cost TUM fr3/teddy 0.75 -> 0.79 cm, and the
 ///   7-Scenes colour camera is not registered to its depth camera.
+/// - RealSense, Stray Scanner: ICP, until recordings decide (a Stray scan
+///   read natively has no colour at all).
 #[must_use]
 pub fn preset_tracker(preset: CameraPreset) -> TrackerMode {
     match preset {
@@ -152,7 +154,9 @@ pub fn preset_tracker(preset: CameraPreset) -> TrackerMode {
         CameraPreset::TumFr1
         | CameraPreset::TumFr2
         | CameraPreset::TumFr3
-        | CameraPreset::SevenScenes => TrackerMode::Icp,
+        | CameraPreset::SevenScenes
+        | CameraPreset::RealSenseD400
+        | CameraPreset::StrayLidar => TrackerMode::Icp,
     }
 }
 

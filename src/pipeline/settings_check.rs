@@ -127,6 +127,8 @@ fn layout_of(preset: CameraPreset) -> DatasetKind {
         CameraPreset::TumFr1 | CameraPreset::TumFr2 | CameraPreset::TumFr3 => DatasetKind::Tum,
         CameraPreset::IclNuim => DatasetKind::IclNuim,
         CameraPreset::SevenScenes => DatasetKind::SevenScenes,
+        CameraPreset::RealSenseD400 => DatasetKind::RealSense,
+        CameraPreset::StrayLidar => DatasetKind::StrayScanner,
     }
 }
 
@@ -162,11 +164,13 @@ pub fn layout_warnings(
     }
     let k = detected.intrinsics();
     let d = detected.depth_settings();
-    let values = [
-        ("fx", config.intrinsics.fx, k.fx),
-        ("fy", config.intrinsics.fy, k.fy),
-        ("depth scale", config.depth.scale, d.scale),
-    ];
+    let mut values = vec![("depth scale", config.depth.scale, d.scale)];
+    // A layout with its own calibration file: the preset's focal lengths
+    // are only typical, the file's are in use.
+    if !detected.calibrated_by_layout() {
+        values.insert(0, ("fy", config.intrinsics.fy, k.fy));
+        values.insert(0, ("fx", config.intrinsics.fx, k.fx));
+    }
     for (setting, value, expected) in values {
         if far_off(value, expected) {
             out.push(SettingsWarning::Value {

@@ -23,7 +23,7 @@ use crate::track::TrackerMode;
 const TS_SLAM_CONFIG: &'static str = r#"
 /** Camera and tracking settings for `new Slam(config)`; fields override the preset. */
 export interface SlamConfig {
-  preset?: 'tum-fr1' | 'tum-fr2' | 'tum-fr3' | 'icl-nuim' | '7-scenes';
+  preset?: 'tum-fr1' | 'tum-fr2' | 'tum-fr3' | 'icl-nuim' | '7-scenes' | 'realsense-d400' | 'stray-lidar';
   fx?: number; fy?: number; cx?: number; cy?: number; width?: number; height?: number;
   /** Raw depth units per metre. */
   depthScale?: number;
@@ -55,7 +55,7 @@ export interface SlamConfig {
   /** Relocalise a lost camera from the fern keyframes. */
   relocalise?: boolean;
   /** Depth noise model weighting tracking and fusion (default: the preset's; 'uniform' = no weighting). */
-  noise?: 'kinect-v1' | 'structured-light' | 'simulated-kinect' | 'rendered' | 'uniform';
+  noise?: 'kinect-v1' | 'structured-light' | 'simulated-kinect' | 'active-stereo' | 'lidar' | 'rendered' | 'uniform';
   /** Simulate a sensor's noise on every pushed frame's (clean) depth: ICL-NUIM's Kinect v1 recipe. */
   simulateNoise?: 'kinect-v1' | null;
   /** With simulateNoise: the draw (an integer; the same seed gives the same noise). Default 1. */

@@ -63,30 +63,40 @@ export interface FrameReport {
   timings: { decode: number; preprocess: number; track: number; fuse: number; loop: number; predict: number; total: number };
 }
 
+/** The dataset layouts detectLayout recognises. */
+export type LayoutKind = 'tum' | 'icl-nuim' | '7-scenes' | 'realsense' | 'stray-scanner';
+
 export interface Layout {
-  kind: 'tum' | 'icl-nuim' | '7-scenes';
+  kind: LayoutKind;
   indexFiles: string[];
   rootPrefix: string;
 }
 
 export interface SequenceFrame {
-  index: number; timestamp: number; colour: string; depth: string; poseFile: string | null;
+  /** `colour`: null for a depth-only frame (Stray Scanner without rgb/). `confidence`: the Stray Scanner confidence image (depth of confidence 0 is no measurement), or null. */
+  index: number; timestamp: number; colour: string | null; depth: string; confidence: string | null; poseFile: string | null;
   /** Why the frame cannot be read (an image its index lists is absent), or null. */
   missing: string | null;
 }
 
 /** The camera presets' names (as SlamConfig.preset takes them). */
-export type PresetName = 'tum-fr1' | 'tum-fr2' | 'tum-fr3' | 'icl-nuim' | '7-scenes';
+export type PresetName = 'tum-fr1' | 'tum-fr2' | 'tum-fr3' | 'icl-nuim' | '7-scenes' | 'realsense-d400' | 'stray-lidar';
 
 export interface Sequence {
-  kind: 'tum' | 'icl-nuim' | '7-scenes';
-  /** The preset the layout implies: pass it as `new Slam({ preset: sequence.preset })`. */
+  kind: LayoutKind;
+  /** The preset the layout implies: pass it as `new Slam({ preset: sequence.preset, ...sequence.intrinsics })`. */
   preset: PresetName;
+  /** The depth images' intrinsics from the folder's calibration file (RealSense camera_intrinsic.json, Stray Scanner camera_matrix.csv scaled to 256x192), pixels; null for the other layouts. */
+  intrinsics: { fx: number; fy: number; cx: number; cy: number; width: number; height: number } | null;
   frames: SequenceFrame[];
   /** [t, tx, ty, tz, qx, qy, qz, qw] rows, world_from_camera. */
   groundTruth: number[][];
   /** The ground truth as TUM text, '' when there is none. */
   groundTruthTum: string;
+  /** The recording device's own trajectory (Stray Scanner odometry.csv, ARKit), rows as groundTruth's: a reference, not ground truth. Empty for the other layouts. */
+  odometry: number[][];
+  /** The odometry as TUM text, '' when there is none. */
+  odometryTum: string;
 }
 
 /** Absolute trajectory error after rigid alignment, metres. */
@@ -107,13 +117,16 @@ pub fn object(fields: &[(&str, JsValue)]) -> Object {
     out
 }
 
-/// Short names of the dataset kinds in the JS API: `tum`, `icl-nuim`, `7-scenes`.
+/// Short names of the dataset kinds in the JS API: `tum`, `icl-nuim`,
+/// `7-scenes`, `realsense`, `stray-scanner`.
 #[must_use]
 pub fn kind_name(kind: DatasetKind) -> &'static str {
     match kind {
         DatasetKind::Tum => "tum",
         DatasetKind::IclNuim => "icl-nuim",
         DatasetKind::SevenScenes => "7-scenes",
+        DatasetKind::RealSense => "realsense",
+        DatasetKind::StrayScanner => "stray-scanner",
     }
 }
 

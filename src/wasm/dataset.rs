@@ -13,8 +13,8 @@ use crate::eval;
 
 /// `detectLayout(fileNames)`: recognises the dataset layout from relative
 /// file names (e.g. `webkitRelativePath`). Returns `{ kind, indexFiles,
-/// rootPrefix }` with kind `'tum' | 'icl-nuim' | '7-scenes'`; throws if the
-/// layout is not recognised.
+/// rootPrefix }` with kind `'tum' | 'icl-nuim' | '7-scenes' | 'realsense' |
+/// 'stray-scanner'`; throws if the layout is not recognised.
 #[wasm_bindgen(js_name = detectLayout, unchecked_return_type = "Layout")]
 pub fn detect_layout(
     #[wasm_bindgen(js_name = "fileNames", unchecked_param_type = "string[]")] file_names: JsValue,
@@ -38,12 +38,17 @@ pub fn detect_layout(
 /// ground truth. `indexTexts` maps each of `detectLayout(...).indexFiles` to
 /// its text (7-Scenes: the per-frame `.pose.txt` files, each optional: a
 /// frame whose pose text is not given has no ground truth). Returns `{ kind,
-/// preset, frames: [{index, timestamp, colour, depth, poseFile, missing}],
-/// groundTruth: [[t, tx, ty, tz, qx, qy, qz, qw], ...], groundTruthTum }`
-/// (paths as in `fileNames`; `missing`: null, or the message naming an image
-/// the index lists but `fileNames` lacks: skip that frame; `groundTruthTum`
-/// is the ground truth as TUM text, `''` when there is none). Throws when no
-/// frame has all its images.
+/// preset, intrinsics, frames: [{index, timestamp, colour, depth,
+/// confidence, poseFile, missing}], groundTruth: [[t, tx, ty, tz, qx, qy,
+/// qz, qw], ...], groundTruthTum, odometry, odometryTum }` (paths as in
+/// `fileNames`; `colour` null for a depth-only frame, `confidence` the Stray
+/// Scanner confidence image or null; `missing`: null, or the message naming
+/// an image the index lists but `fileNames` lacks: skip that frame;
+/// `intrinsics` `{fx, fy, cx, cy, width, height}` from the folder's
+/// calibration file (RealSense, Stray Scanner) or null; `odometry` the
+/// device's own trajectory (Stray Scanner), not ground truth; the `...Tum`
+/// fields as TUM text, `''` when empty). Throws when no frame has all its
+/// images.
 #[wasm_bindgen(js_name = parseSequence, unchecked_return_type = "Sequence")]
 pub fn parse_sequence(
     #[wasm_bindgen(js_name = "fileNames", unchecked_param_type = "string[]")] file_names: JsValue,
@@ -78,49 +83,72 @@ pub fn parse_sequence(
     }
     let seq = dataset::parse_sequence(&layout, &names, &texts, name_hint.as_deref())?;
 
-    let frames: Array = seq
-        .frames
-        .iter()
-        .map(|f| -> JsValue {
-            object(&[
-                ("index", (f.index as f64).into()),
-                ("timestamp", f.timestamp.into()),
-                ("colour", f.colour.as_str().into()),
-                ("depth", f.depth.as_str().into()),
-                (
-                    "poseFile",
-                    f.pose_file
-                        .as_deref()
-                        .map_or(JsValue::NULL, JsValue::from_str),
-                ),
-                (
-                    "missing",
-                    f.missing
-                        .as_ref()
-                        .map_or(JsValue::NULL, |e| JsValue::from_str(&e.to_string())),
-                ),
-            ])
-            .into()
-        })
-        .collect();
+    let frames: Array = seq.frames.iter().map(frame_to_js).collect();
     let ground_truth: Array = seq
         .ground_truth
         .iter()
         .map(|(t, pose)| tum_row(*t, pose))
         .collect();
-    let ground_truth_tum = if seq.ground_truth.is_empty() {
-        String::new()
-    } else {
-        dataset::trajectory::format_tum(&seq.ground_truth)
+    let tum_text = |poses: &[(f64, glam::DAffine3)]| {
+        if poses.is_empty() {
+            String::new()
+        } else {
+            dataset::trajectory::format_tum(poses)
+        }
     };
+    let odometry: Array = seq
+        .odometry
+        .iter()
+        .map(|(t, pose)| tum_row(*t, pose))
+        .collect();
     Ok(object(&[
         ("kind", kind_name(seq.kind).into()),
         ("preset", seq.preset.name().into()),
+        (
+            "intrinsics",
+            seq.intrinsics.map_or(JsValue::NULL, intrinsics_to_js),
+        ),
         ("frames", frames.into()),
         ("groundTruth", ground_truth.into()),
-        ("groundTruthTum", ground_truth_tum.into()),
+        ("groundTruthTum", tum_text(&seq.ground_truth).into()),
+        ("odometry", odometry.into()),
+        ("odometryTum", tum_text(&seq.odometry).into()),
     ])
     .into())
+}
+
+/// One frame of `parseSequence`'s `frames`: `{index, timestamp, colour,
+/// depth, confidence, poseFile, missing}` (`null` for an absent path).
+fn frame_to_js(f: &dataset::FrameEntry) -> JsValue {
+    let path = |p: &Option<String>| p.as_deref().map_or(JsValue::NULL, JsValue::from_str);
+    object(&[
+        ("index", (f.index as f64).into()),
+        ("timestamp", f.timestamp.into()),
+        ("colour", path(&f.colour)),
+        ("depth", f.depth.as_str().into()),
+        ("confidence", path(&f.confidence)),
+        ("poseFile", path(&f.pose_file)),
+        (
+            "missing",
+            f.missing
+                .as_ref()
+                .map_or(JsValue::NULL, |e| JsValue::from_str(&e.to_string())),
+        ),
+    ])
+    .into()
+}
+
+/// A calibration file's intrinsics: `{fx, fy, cx, cy, width, height}`, pixels.
+fn intrinsics_to_js(k: crate::camera::Intrinsics) -> JsValue {
+    object(&[
+        ("fx", f64::from(k.fx).into()),
+        ("fy", f64::from(k.fy).into()),
+        ("cx", f64::from(k.cx).into()),
+        ("cy", f64::from(k.cy).into()),
+        ("width", (k.width as f64).into()),
+        ("height", (k.height as f64).into()),
+    ])
+    .into()
 }
 
 /// `ateTum(estimateTum, groundTruthTum, maxDt = 0.02)`: absolute trajectory

@@ -65,7 +65,7 @@ test('module loads from bytes; presets, threadCount and memoryBytes', { skip: sk
   const presets = m.presets();
   assert.deepEqual(
     presets.map((p) => p.name),
-    ['tum-fr1', 'tum-fr2', 'tum-fr3', 'icl-nuim', '7-scenes'],
+    ['tum-fr1', 'tum-fr2', 'tum-fr3', 'icl-nuim', '7-scenes', 'realsense-d400', 'stray-lidar'],
   );
   assert.equal(presets[3].fy, -480);
   assert.equal(m.threadCount(), 1);

@@ -52,7 +52,8 @@ impl Pool {
             Frames::Synthetic(f) => f[i].clone(),
             Frames::Real { dir, sequence } => {
                 let entry = &sequence.frames[i];
-                let colour_png = std::fs::read(dir.join(&entry.colour)).expect("colour file");
+                let colour_png = std::fs::read(dir.join(entry.colour.as_deref().expect("colour")))
+                    .expect("colour file");
                 let depth_png = std::fs::read(dir.join(&entry.depth)).expect("depth file");
                 let rgb = image::load_from_memory(&colour_png)
                     .expect("colour decodes")
