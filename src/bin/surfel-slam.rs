@@ -49,7 +49,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Track and fuse a TUM, ICL-NUIM, 7-Scenes, RealSense or Stray Scanner folder.
-    Run(run::RunArgs),
+    Run(Box<run::RunArgs>),
     /// Time every stage over a sequence (files preloaded; decode included):
     /// medians per stage and per frame, peak memory.
     Bench(bench::BenchArgs),
