@@ -414,10 +414,11 @@ fn detect_sensor_layout(top: &[&str], names: &[&str], root_prefix: &str) -> Opti
     } else {
         return None;
     };
-    let has_depth = match kind {
-        DatasetKind::RealSense => realsense::has_frames(names, root_prefix),
-        _ => stray::has_frames(names, root_prefix),
-    };
+    let has_depth = names.iter().any(|n| {
+        n.strip_prefix(root_prefix)
+            .and_then(|rest| rest.strip_prefix("depth/"))
+            .is_some_and(|base| numbered(base, &["png"]).is_some())
+    });
     has_depth.then(|| Layout {
         kind,
         root_prefix: root_prefix.to_owned(),

@@ -15,20 +15,10 @@ use std::collections::{BTreeSet, HashMap, HashSet};
 
 use crate::camera::Intrinsics;
 
-use super::{index_text, numbered, numbered_in, CalibratedSize, DatasetError, FrameEntry, Layout};
+use super::{index_text, numbered_in, CalibratedSize, DatasetError, FrameEntry, Layout};
 
 /// Colour image extensions, in the order preferred when a frame has both.
 const COLOUR_EXTENSIONS: [&str; 3] = ["jpg", "png", "jpeg"];
-
-/// Whether `names` hold a depth image `depth/NNNNNN.png` in the folder
-/// `root_prefix` (the layout's test beside `camera_intrinsic.json`).
-pub(crate) fn has_frames(names: &[&str], root_prefix: &str) -> bool {
-    names.iter().any(|n| {
-        n.strip_prefix(root_prefix)
-            .and_then(|rest| rest.strip_prefix("depth/"))
-            .is_some_and(|base| numbered(base, &["png"]).is_some())
-    })
-}
 
 /// Builds the RealSense frame list (frames in number order; a number with
 /// only one of its two images keeps its place with `missing` set) and the

@@ -35,7 +35,7 @@ use glam::{DAffine3, DQuat, DVec3};
 use crate::camera::Intrinsics;
 
 use super::lines::{content_lines, Line};
-use super::{index_text, numbered, numbered_in, CalibratedSize, DatasetError, FrameEntry, Layout};
+use super::{index_text, numbered_in, CalibratedSize, DatasetError, FrameEntry, Layout};
 
 /// Width of the colour images `camera_matrix.csv` is calibrated for, pixels.
 pub const COLOUR_WIDTH: usize = 1920;
@@ -68,15 +68,6 @@ pub(crate) struct Parsed {
     pub frames: Vec<FrameEntry>,
     /// The device's odometry `(timestamp, world_from_camera)`.
     pub odometry: Vec<(f64, DAffine3)>,
-}
-
-/// Whether `names` hold a depth image `depth/NNNNNN.png` in `root_prefix`.
-pub(crate) fn has_frames(names: &[&str], root_prefix: &str) -> bool {
-    names.iter().any(|n| {
-        n.strip_prefix(root_prefix)
-            .and_then(|rest| rest.strip_prefix("depth/"))
-            .is_some_and(|base| numbered(base, &["png"]).is_some())
-    })
 }
 
 /// Builds the Stray Scanner frame list, the depth intrinsics and the
