@@ -412,7 +412,7 @@ fn bad_command_lines_exit_2_naming_the_option() {
     let a = cli(&["run", "--help"]);
     assert_eq!(a.code, 0, "{}", a.stderr);
     for default in [
-        "[default: icp]",
+        "[default: the preset's: joint for icl-nuim, icp for the others]",
         "[default: 3]",
         "[default: 4000000]",
         "--depth-max <DEPTH_MAX>",

@@ -315,9 +315,11 @@ fn negative_fy_on_the_command_line_matches_the_icl_preset() {
             "239.5",
             "--depth-max",
             "8",
-            // The ICL-NUIM preset's model for its clean renderings.
+            // The ICL-NUIM preset's model for its clean renderings, and its tracker.
             "--noise",
             "rendered",
+            "--tracker",
+            "joint",
         ],
     );
     let text = |p: &Path| std::fs::read_to_string(p).expect("trajectory");
