@@ -622,7 +622,7 @@ fn bad_configs_throw_clear_errors() {
         assert!(err.contains(expected), "{err:?} lacks {expected:?}");
     }
     let presets = wasm::presets();
-    assert_eq!(presets.length(), 5);
+    assert_eq!(presets.length(), 7);
     assert_eq!(text(&presets.get(0), "name"), "tum-fr1");
     assert_eq!(wasm::thread_count(), 1);
 }

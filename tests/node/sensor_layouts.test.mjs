@@ -1,0 +1,66 @@
+// The RealSense (Open3D recorder) and Stray Scanner layouts through the npm
+// package's detectLayout / parseSequence, from file listings and the index
+// texts alone: the kinds and presets, the intrinsics (column-major JSON; a
+// camera matrix at 1920x1440 scaled to the 256x192 depth), the frames'
+// timestamps, confidence and missing colour, the device's odometry (not
+// ground truth), and the errors that name a malformed file.
+import { test } from 'node:test';
+import assert from 'node:assert/strict';
+import fs from 'node:fs';
+import path from 'node:path';
+import { loadPackage, PKG } from './long_run.mjs';
+
+const skip = fs.existsSync(path.join(PKG, 'surfel_slam.js')) ? false : `${PKG} is not built: run scripts/build.sh`;
+const num = (i) => String(i).padStart(6, '0');
+
+test('a RealSense recording: the file intrinsics, column-major, and file numbers as timestamps', { skip }, async () => {
+  const m = await loadPackage();
+  const names = ['rs/camera_intrinsic.json', 'rs/realsense.bag', 'rs/scene/integrated.ply'];
+  for (const i of [0, 1, 2]) names.push(`rs/color/${num(i)}.jpg`, `rs/depth/${num(i)}.png`);
+  const layout = m.detectLayout(names);
+  assert.equal(layout.kind, 'realsense');
+  assert.deepEqual(layout.indexFiles, ['rs/camera_intrinsic.json']);
+  const json = JSON.stringify({ width: 848, height: 480, intrinsic_matrix: [421.0, 0, 0, 0, 420.5, 0, 423.9, 241.2, 1] });
+  const seq = m.parseSequence(names, { 'rs/camera_intrinsic.json': json }, 'rs');
+  assert.equal(seq.preset, 'realsense-d400');
+  const k = seq.intrinsics;
+  assert.deepEqual([k.fx, k.fy, k.cx, k.cy, k.width, k.height].map((v) => Math.round(v * 10) / 10), [421, 420.5, 423.9, 241.2, 848, 480]);
+  assert.deepEqual(seq.frames.map((f) => f.timestamp), [0, 1, 2]);
+  assert.equal(seq.frames[1].colour, 'rs/color/000001.jpg');
+  assert.equal(seq.groundTruth.length, 0);
+  // A row-major matrix (fx, 0, cx in the first row) is refused, naming the file.
+  const rowMajor = JSON.stringify({ width: 848, height: 480, intrinsic_matrix: [421.0, 0, 423.9, 0, 420.5, 241.2, 0, 0, 1] });
+  assert.throws(() => m.parseSequence(names, { 'rs/camera_intrinsic.json': rowMajor }, 'rs'), /camera_intrinsic\.json/);
+});
+
+test('a Stray Scanner export: scaled intrinsics, confidence, depth only, odometry as a reference', { skip }, async () => {
+  const m = await loadPackage();
+  const frames = 4;
+  const names = ['s/camera_matrix.csv', 's/odometry.csv', 's/rgb.mp4', 's/imu.csv'];
+  for (let i = 0; i < frames; i++) names.push(`s/depth/${num(i)}.png`, `s/confidence/${num(i)}.png`);
+  const layout = m.detectLayout(names);
+  assert.equal(layout.kind, 'stray-scanner');
+  const matrix = '1440.0, 0.0, 960.0\n0.0, 1440.0, 720.0\n0.0, 0.0, 1.0942\n';
+  // 15 columns, the distortion centre empty; one row fewer than frames.
+  let odometry = 'timestamp, frame, x, y, z, qx, qy, qz, qw, fx, fy, cx, cy, distortion_center_x, distortion_center_y\n';
+  for (let i = 0; i < frames - 1; i++) odometry += `${10 + i / 60}, ${i}, ${0.01 * i}, 0, 0, 0, 0, 0, 1, 1440, 1440, 960, 720, ,\n`;
+  const texts = { 's/camera_matrix.csv': matrix, 's/odometry.csv': odometry };
+  const seq = m.parseSequence(names, texts, 's');
+  assert.equal(seq.preset, 'stray-lidar');
+  const k = seq.intrinsics;
+  const scale = 256 / 1920;
+  assert.ok(Math.abs(k.fx - 1440 * scale) < 1e-3 && Math.abs(k.cx - 960 * scale) < 1e-3, JSON.stringify(k));
+  assert.deepEqual([k.width, k.height], [256, 192]);
+  assert.equal(seq.frames.length, frames);
+  assert.ok(seq.frames.every((f) => f.colour === null), 'depth only: no rgb/ folder');
+  assert.equal(seq.frames[2].confidence, 's/confidence/000002.png');
+  // The frame past the last odometry row continues at the rows' interval.
+  const last = seq.frames[frames - 1].timestamp;
+  assert.ok(Math.abs(last - (10 + (frames - 1) / 60)) < 1e-6, `${last}`);
+  // Odometry is the device's, not ground truth.
+  assert.equal(seq.groundTruth.length, 0);
+  assert.equal(seq.odometry.length, frames - 1);
+  // A missing column is refused, naming the file.
+  const short = 'timestamp, frame, x, y, z, qx, qy, qz, qw\n10, 0, 0, 0, 0, 0, 0, 1\n';
+  assert.throws(() => m.parseSequence(names, { ...texts, 's/odometry.csv': short }, 's'), /odometry\.csv/);
+});
