@@ -3,7 +3,8 @@
 //! from ../shared/data when present), garbage (corrupt or truncated PNG,
 //! wrong size, 8-bit depth, colour/depth size mismatch, wrong pixel buffer,
 //! NaN or infinite timestamp), reset, a change of configuration (a new
-//! pipeline, as the page and the wasm `Slam` do), PLY export, changed range
+//! pipeline, as the page and the wasm `Slam` do; a quarter of them with
+//! simulated Kinect noise), PLY export, changed range
 //! and trajectory reads, a session saved and loaded in place (a cut copy
 //! refused first), in any order. The runs are long enough to cross the
 //! periodic cleanups, the spatial sorting and merging of settled surfels,
@@ -31,6 +32,7 @@ use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::pipeline::VerdictCounts;
 use surfel_slam::random::SplitMix;
 use surfel_slam::session;
+use surfel_slam::simulated_noise::{NoiseSimulation, SimulatedSensor};
 use surfel_slam::synthetic::{self, NoiseModel};
 use surfel_slam::track::TrackerMode;
 use surfel_slam::{FrameReport, Pipeline, PipelineError, SlamConfig};
@@ -72,6 +74,17 @@ fn random_config(pool: &Pool, rng: &mut Rng) -> SlamConfig {
         // A short active window: surfels go inactive within a case.
         config.fusion.active_window_frames = rng.range(1, 30) as u32;
     }
+    // Simulated Kinect noise on a quarter of the configurations, drawn from
+    // a copy of the stream so that the cases drawn before it existed (and
+    // the coverage they give) stay as they were.
+    let mut side = rng.0.clone();
+    let draw = side.next_u64() ^ side.next_u64().rotate_left(17);
+    if draw % 4 == 0 {
+        config.simulate_noise = Some(NoiseSimulation {
+            sensor: SimulatedSensor::KinectV1,
+            seed: draw >> 2,
+        });
+    }
     config
 }
 
@@ -104,6 +117,8 @@ struct Coverage {
     /// Times localise mode was started, and frames pushed in it.
     localise_starts: usize,
     localised: usize,
+    /// Frames pushed with simulated noise on.
+    noisy_frames: usize,
 }
 
 fn fail(seed: u64, step: usize, what: &str) -> String {
@@ -357,6 +372,7 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
                 r.unwrap_or_else(|err| panic!("{}", at(&format!("valid frame refused: {err}"))));
             model.accepted.push(clock);
             cov.frames += 1;
+            cov.noisy_frames += usize::from(slam.config().simulate_noise.is_some());
             cov.lost += usize::from(!r.verdict.is_fused());
             let interval = slam.config().fusion.cleanup_interval_frames.max(1);
             if r.verdict.is_fused() && r.index > 0 && r.index % interval == 0 {
@@ -557,6 +573,7 @@ fn add(total: &mut Coverage, c: Coverage) {
     total.sessions += c.sessions;
     total.localise_starts += c.localise_starts;
     total.localised += c.localised;
+    total.noisy_frames += c.noisy_frames;
 }
 
 #[test]
@@ -595,6 +612,8 @@ fn any_sequence_of_calls_keeps_the_pipeline_consistent_on_synthetic_frames() {
         total.localise_starts > 0 && total.localised > 0,
         "{total:?}"
     );
+    // Past a cleanup interval (150 frames) with simulated noise on.
+    assert!(total.noisy_frames > 150, "{total:?}");
 }
 
 #[test]

@@ -246,7 +246,9 @@ impl Pipeline {
         };
         // Taken out and put back: the stages borrow the pipeline mutably.
         let mut noisy = std::mem::take(&mut self.noisy_frame);
-        noisy.clone_from(frame);
+        noisy.width = frame.width;
+        noisy.height = frame.height;
+        noisy.rgb.clone_from(&frame.rgb);
         simulation.apply_into(
             &frame.depth_m,
             frame.width,
