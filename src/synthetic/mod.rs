@@ -32,6 +32,7 @@ mod noise;
 mod raycast;
 mod render;
 mod scene;
+mod swing;
 mod texture;
 mod trajectory;
 
@@ -42,7 +43,10 @@ pub use render::{
     depth_settings, render, render_into, RenderedFrame, SyntheticError, DEPTH_UNITS_PER_METRE,
 };
 pub use scene::{Scene, SceneBox, ROOM_MAX, ROOM_MIN};
-pub use trajectory::{default_intrinsics, look_at, trajectory, trajectory_pose};
+pub use swing::{render_blurred, turn_between_deg, SwingPath};
+pub use trajectory::{
+    default_intrinsics, look_at, trajectory, trajectory_pose, trajectory_pose_at,
+};
 
 /// Small intrinsics and depth settings shared by the unit tests of the submodules.
 #[cfg(test)]

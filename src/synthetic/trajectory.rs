@@ -37,7 +37,13 @@ pub fn look_at(eye: DVec3, target: DVec3) -> DAffine3 {
 /// Pose `index` of the known trajectory (see [`trajectory`]).
 #[must_use]
 pub fn trajectory_pose(index: usize) -> DAffine3 {
-    let t = index as f64;
+    trajectory_pose_at(index as f64)
+}
+
+/// The known trajectory at a fractional frame time `t` (frame `i` is
+/// `t = i`): the poses between frames, for motion blur.
+#[must_use]
+pub fn trajectory_pose_at(t: f64) -> DAffine3 {
     // Slow arc around the vertical axis through the room centre.
     let theta = 0.2 + 0.011 * t;
     let radius = 1.1 + 0.15 * libm::sin(0.017 * t);

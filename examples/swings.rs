@@ -1,0 +1,131 @@
+//! A hand-held scan with fast swings and motion blur (issue #52): the
+//! synthetic room along its known path, the camera turned 60 degrees aside
+//! and back every 70 frames (`SwingPath::default`), each frame's colour
+//! averaged over half a frame interval of motion, rendered at 320x240.
+//! Prints frames lost, the longest lost stretch, held and recovered
+//! frames, tracked frames off the truth's motion by more than 1 cm / 1
+//! degree, and ATE.
+//!
+//! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
+//! [--swing-frames N] [--noisy] [--exposure F] [--preset NAME] [--verbose
+//! [--from FRAME]]` (`--verbose`: one line per frame for 50 frames from
+//! `--from`, default 30: verdict, the true turn, the pose's error).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
+
+use surfel_slam::eval::ate;
+use surfel_slam::se3::motion_magnitude;
+use surfel_slam::simulated_noise::{NoiseSimulation, SimulatedSensor};
+use surfel_slam::synthetic::{self, render_blurred, NoiseModel, Scene, SwingPath};
+use surfel_slam::{CameraPreset, Intrinsics, Pipeline, SlamConfig, Verdict};
+
+fn arg<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> T {
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default)
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let frames: usize = arg(&args, "--frames", 320);
+    let path = SwingPath {
+        amplitude_deg: arg(&args, "--amplitude", 60.0),
+        swing_frames: arg(&args, "--swing-frames", 10.0),
+        ..SwingPath::default()
+    };
+    let exposure: f64 = arg(&args, "--exposure", 0.5);
+    let preset_name: String = arg(&args, "--preset", "tum-fr3".to_string());
+    let preset = CameraPreset::from_name(&preset_name).expect("known preset");
+    let k = Intrinsics::new(262.5, 262.5, 159.5, 119.5, 320, 240);
+    let mut config = SlamConfig::from_preset(preset);
+    config.intrinsics = k;
+    config.depth = synthetic::depth_settings();
+    if args.iter().any(|a| a == "--noisy") {
+        config.simulate_noise = Some(NoiseSimulation {
+            sensor: SimulatedSensor::KinectV1,
+            seed: 1,
+        });
+    }
+    let scene = Scene::room();
+    let mut slam = Pipeline::new(config.clone())?;
+    let origin = path.pose(0.0).inverse();
+    let mut truth = Vec::new();
+    let mut verdicts = Vec::new();
+    let mut off = 0;
+    let mut last_fused: Option<(usize, glam::DAffine3)> = None;
+    for i in 0..frames {
+        let t = i as f64;
+        let rendered = render_blurred(
+            &scene,
+            &k,
+            &path.exposure(t, exposure, 5),
+            &NoiseModel::none(),
+            i as u64,
+        );
+        let report = slam.push_frame(&rendered.to_frame(&config.depth)?, t)?;
+        let true_pose = origin * path.pose(t);
+        truth.push((t, true_pose));
+        let placed = matches!(
+            report.verdict,
+            Verdict::Tracked | Verdict::Recovered | Verdict::Initialised | Verdict::Held
+        );
+        if let (true, Some((j, pose))) = (matches!(report.verdict, Verdict::Tracked), last_fused) {
+            let estimated = pose.inverse() * report.world_from_camera;
+            let actual = truth[j].1.inverse() * true_pose;
+            let (dt, dr) = motion_magnitude(&(actual.inverse() * estimated));
+            if dt > 0.01 || dr.to_degrees() > 1.0 {
+                off += 1;
+            }
+        }
+        if placed {
+            last_fused = Some((i, report.world_from_camera));
+        }
+        if args.iter().any(|a| a == "--verbose")
+            && (arg(&args, "--from", 30)..arg(&args, "--from", 30) + 50).contains(&i)
+        {
+            let step = synthetic::turn_between_deg(&path.pose(t - 1.0), &path.pose(t));
+            let (et, er) = motion_magnitude(&(true_pose.inverse() * report.world_from_camera));
+            println!(
+                "{i}: {:?} true turn {step:.1} deg, pose error {:.1} cm {:.1} deg, inliers {}, sparse {:?}",
+                report.verdict,
+                100.0 * et,
+                er.to_degrees(),
+                report.inliers,
+                report.checks.sparse.map(|s| s.1),
+            );
+        }
+        verdicts.push(report.verdict);
+    }
+    let lost: Vec<bool> = verdicts
+        .iter()
+        .map(|v| matches!(v, Verdict::Lost(_)))
+        .collect();
+    let longest = lost.split(|l| !l).map(<[bool]>::len).max().unwrap_or(0);
+    let count = |f: fn(&Verdict) -> bool| verdicts.iter().filter(|v| f(v)).count();
+    let estimate = slam.trajectory();
+    let result = ate(estimate, &truth, 0.01)?;
+    println!(
+        "{frames} frames, swings {:.0} deg in {:.0} frames: lost {} (longest {longest}), held {}, recovered {}, tracked-but-off {off}, ATE {:.3} cm ({} poses)",
+        path.amplitude_deg,
+        path.swing_frames,
+        count(|v| matches!(v, Verdict::Lost(_))),
+        count(|v| matches!(v, Verdict::Held)),
+        count(|v| matches!(v, Verdict::Recovered)),
+        100.0 * result.rmse_m,
+        result.pairs,
+    );
+    let line: String = verdicts
+        .iter()
+        .map(|v| match v {
+            Verdict::Lost(_) => 'L',
+            Verdict::Held => 'h',
+            Verdict::Recovered => 'R',
+            _ => '.',
+        })
+        .collect();
+    for (i, chunk) in line.as_bytes().chunks(70).enumerate() {
+        println!("{:4} {}", i * 70, String::from_utf8_lossy(chunk));
+    }
+    Ok(())
+}
