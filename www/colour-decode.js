@@ -82,21 +82,35 @@ function opaque(rgba) {
 }
 
 /**
+ * Whether a frame is pushed as its files (Slam.pushFiles, decoded in wasm as
+ * the CLI reads them): a depth-only frame (no colour image) or one with a
+ * confidence image (Stray Scanner: colour of another size than depth, low
+ * confidence dropped).
+ */
+export const pushedAsFiles = (frame) => frame.colour == null || frame.confidence != null;
+
+/**
  * Reads a frame's files from a SequenceSource and decodes its colour image:
- * `{ colourBuf, depthBuf, decoded }`, `decoded` = `{ width, height, rgba }`
- * or null when wasm is to decode the colour (the browser could not, or not
- * exactly; pushFrame then decodes it or says what is wrong with it).
+ * `{ colourBuf, depthBuf, confidenceBuf, decoded }`, `decoded` = `{ width,
+ * height, rgba }` or null when wasm is to decode the colour (the browser
+ * could not, or not exactly; pushFrame then decodes it or says what is wrong
+ * with it, or the frame is pushed as its files); `colourBuf` null for a
+ * depth-only frame, `confidenceBuf` null without a confidence image.
  * Rejects only when a file cannot be read.
  */
-export async function readAndDecodeColour(source, { colour, depth }, decode = true) {
-  const [colourBuf, depthBuf] = await Promise.all([source.read(colour), source.read(depth)]);
+export async function readAndDecodeColour(source, { colour, depth, confidence }, decode = true) {
+  const [colourBuf, depthBuf, confidenceBuf] = await Promise.all([
+    colour == null ? null : source.read(colour),
+    source.read(depth),
+    confidence == null ? null : source.read(confidence),
+  ]);
   let decoded = null;
-  if (decode && browserCanDecode) {
+  if (decode && browserCanDecode && colourBuf && !pushedAsFiles({ colour, confidence })) {
     try {
       decoded = await decodeColour(colourBuf, { preview: true });
     } catch {
       decoded = null;
     }
   }
-  return { colourBuf, depthBuf, decoded };
+  return { colourBuf, depthBuf, confidenceBuf, decoded };
 }

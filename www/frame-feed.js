@@ -36,7 +36,7 @@ export class FrameFeed {
       if (!waiting) return; // the sequence was replaced or reset meanwhile
       this.waiting.delete(key);
       if (data.error !== undefined) waiting.reject(new Error(data.error));
-      else waiting.resolve({ colourBuf: data.colourBuf, depthBuf: data.depthBuf, decoded: data.decoded });
+      else waiting.resolve({ colourBuf: data.colourBuf, depthBuf: data.depthBuf, confidenceBuf: data.confidenceBuf ?? null, decoded: data.decoded });
     };
     this.reader.onerror = (e) => {
       // The reader cannot run (or died): read on this thread from now on.
@@ -94,7 +94,10 @@ export class FrameFeed {
     const from = Math.max(this.readAheadUntil, index + 1);
     const to = Math.min(this.seq.frames.length, index + 1 + 2 * READ_BATCH);
     if (from >= to) return;
-    const paths = this.seq.frames.slice(from, to).flatMap((f) => [f.colour, f.depth]);
+    const paths = this.seq.frames
+      .slice(from, to)
+      .flatMap((f) => [f.colour, f.depth, f.confidence])
+      .filter((p) => p != null);
     this.reader.postMessage({ type: ToReader.READ_AHEAD, id: this.seq.id, paths });
     this.readAheadUntil = to;
   }
@@ -105,8 +108,8 @@ export class FrameFeed {
     let promise;
     if (this.reader) {
       promise = new Promise((resolve, reject) => this.waiting.set(`${id}:${index}`, { resolve, reject, source, frame }));
-      const { colour, depth } = frame;
-      this.reader.postMessage({ type: ToReader.READ, id, index, colour, depth, decode: this.decodeColour });
+      const { colour, depth, confidence } = frame;
+      this.reader.postMessage({ type: ToReader.READ, id, index, colour, depth, confidence: confidence ?? null, decode: this.decodeColour });
     } else {
       promise = readAndDecodeColour(source, frame, this.decodeColour);
     }

@@ -76,7 +76,7 @@ self.onmessage = async ({ data }) => {
   const { id, index } = data;
   try {
     const frame = await readAndDecodeColour(cachedReader(source), data, data.decode !== false);
-    const transfer = [frame.colourBuf, frame.depthBuf];
+    const transfer = [frame.colourBuf, frame.depthBuf, frame.confidenceBuf].filter(Boolean);
     if (frame.decoded) transfer.push(frame.decoded.rgba.buffer);
     if (frame.decoded?.preview) transfer.push(frame.decoded.preview);
     self.postMessage({ id, index, ...frame }, transfer);

@@ -75,7 +75,11 @@ export class InputViews {
     while (this.pending) {
       const { colourBytes, depthBytes, depthScale, flow, colourPreview, depthPreview } = this.pending;
       this.pending = null;
-      const colour = colourPreview ? this.drawPreview(colourPreview) : this.drawColour(colourBytes);
+      const colour = colourPreview
+        ? this.drawPreview(colourPreview)
+        : colourBytes
+          ? this.drawColour(colourBytes)
+          : this.placeholder(this.colourCtx, 'depth only');
       const depth = depthPreview?.metres?.length === VIEW_W * VIEW_H ? this.drawDepthMetres(depthPreview.metres) : this.drawDepth(depthBytes, depthScale);
       await Promise.all([colour, depth]);
       // The thumbnail without the tracks, to take them off when the overlay is switched off.

@@ -22,7 +22,7 @@
 // session goes on in it).
 import { ToWorker, FromWorker } from './protocol.js';
 import { openSource } from './sequence.js';
-import { PREVIEW_WIDTH, PREVIEW_HEIGHT } from './colour-decode.js';
+import { PREVIEW_WIDTH, PREVIEW_HEIGHT, pushedAsFiles } from './colour-decode.js';
 import { errorText, isModuleFailure, startModule as loadModule, toPlain } from './wasm-module.js';
 import { FrameFeed, describeFrameError } from './frame-feed.js';
 import { copyChanged, RollingRefresh, surfelBuffers } from './surfel-copy.js';
@@ -402,15 +402,16 @@ async function processNext() {
   }
   const t0 = performance.now();
   const reading = feed.read(index);
-  let colourBuf, depthBuf, decoded;
+  let colourBuf, depthBuf, confidenceBuf, decoded;
   try {
-    ({ colourBuf, depthBuf, decoded } = await reading);
+    ({ colourBuf, depthBuf, confidenceBuf, decoded } = await reading);
   } catch (e) {
     post({ type: FromWorker.FRAME_ERROR, index, message: errorText(e), frameCount: seq.frames.length });
     return;
   }
   const tRead = performance.now();
-  const colour = new Uint8Array(colourBuf);
+  // A depth-only frame (Stray Scanner without rgb/) has no colour image.
+  const colour = colourBuf ? new Uint8Array(colourBuf) : null;
   const depth = new Uint8Array(depthBuf);
   const colourDecoder = decoded ? 'browser' : 'wasm';
   let r;
@@ -426,9 +427,11 @@ async function processNext() {
       if (typeof SharedArrayBuffer === 'function') Atomics.wait(new Int32Array(new SharedArrayBuffer(4)), 0, 0);
       for (;;);
     }
-    const report = decoded
-      ? slam.pushRgbaDepthPng(decoded.width, decoded.height, decoded.rgba, depth, frame.timestamp)
-      : slam.pushFrame(colour, depth, frame.timestamp);
+    const report = pushedAsFiles(frame)
+      ? slam.pushFiles(colour, depth, confidenceBuf ? new Uint8Array(confidenceBuf) : null, [frame.colour ?? null, frame.depth, frame.confidence ?? null], frame.timestamp)
+      : decoded
+        ? slam.pushRgbaDepthPng(decoded.width, decoded.height, decoded.rgba, depth, frame.timestamp)
+        : slam.pushFrame(colour, depth, frame.timestamp);
     r = toPlain(report);
   } catch (e) {
     if (isModuleFailure(e)) throw e;
@@ -441,11 +444,11 @@ async function processNext() {
         colourDecoder,
         input: { colour: colourBuf, depth: depthBuf, depthScale: config.depthScale ?? null, colourPreview: decoded?.preview ?? null },
       },
-      decoded?.preview ? [colourBuf, depthBuf, decoded.preview] : [colourBuf, depthBuf],
+      [colourBuf, depthBuf, decoded?.preview].filter(Boolean),
     );
     return;
   }
-  const flowOverlay = flowTracks(colour, decoded);
+  const flowOverlay = colour ? flowTracks(colour, decoded) : null;
   // The depth view's thumbnail at full 16-bit precision, without a second PNG decode.
   const depthPreview = { width: PREVIEW_WIDTH, height: PREVIEW_HEIGHT, metres: slam.depthPreview(PREVIEW_WIDTH, PREVIEW_HEIGHT) };
   const tPush = performance.now();
@@ -515,7 +518,7 @@ async function processNext() {
     [
       ...surfelBuffers(surfels),
       ...(refreshed ? surfelBuffers(refreshed) : []),
-      colourBuf,
+      ...(colourBuf ? [colourBuf] : []),
       depthBuf,
       depthPreview.metres.buffer,
       ...(decoded?.preview ? [decoded.preview] : []),

@@ -85,4 +85,22 @@ impl Pipeline {
         report.timings.total_ms += decode_ms;
         Ok(report)
     }
+
+    /// Processes a frame the caller decoded (a dataset frame's files, see
+    /// `dataset::decode_frame_bytes`), kept afterwards as
+    /// [`Pipeline::last_decoded_frame`] (the page's depth preview) like the
+    /// frames of [`Self::push_png`]. On error nothing changes.
+    pub fn push_decoded(
+        &mut self,
+        frame: RgbdFrame,
+        timestamp: f64,
+    ) -> Result<FrameReport, PipelineError> {
+        self.decoded_was_pushed = false;
+        let pushed = self.push_frame(&frame, timestamp);
+        if pushed.is_ok() {
+            self.decoded = frame;
+            self.decoded_was_pushed = true;
+        }
+        pushed
+    }
 }

@@ -14,6 +14,7 @@ use super::convert::{ate_to_js, max_dt_from_js, report_to_js};
 use super::session::{session_error, LoadOptions};
 use crate::camera::CameraPreset;
 use crate::dataset::trajectory::{format_tum, parse_tum};
+use crate::dataset::{decode_frame_bytes, CalibratedSize, FrameBytes, FrameEntry};
 use crate::eval;
 use crate::mesh::write_surfel_ply;
 use crate::pipeline::Pipeline;
@@ -108,6 +109,61 @@ impl Slam {
         Ok(report_to_js(&report))
     }
 
+    /// Decodes a dataset frame's files and processes it, as the CLI reads
+    /// them: `colour` a PNG or JPEG (null for a depth-only frame: the map
+    /// is then grey), scaled to the depth's size when it differs (phone
+    /// scans); `depth` a 16-bit PNG of the camera's size; `confidence` an
+    /// 8-bit confidence PNG (Stray Scanner: depth where it is 0 is dropped)
+    /// or null. `paths` names the three files for messages (`[colour or
+    /// null, depth, confidence or null]`). Throws (and changes nothing) on
+    /// bad bytes or sizes, naming the file; the message starts `frame at
+    /// timestamp T:`.
+    #[wasm_bindgen(js_name = pushFiles, unchecked_return_type = "FrameReport")]
+    pub fn push_files(
+        &mut self,
+        colour: Option<Vec<u8>>,
+        depth: &[u8],
+        confidence: Option<Vec<u8>>,
+        #[wasm_bindgen(unchecked_param_type = "[string | null, string, string | null]")] paths: Vec<
+            JsValue,
+        >,
+        timestamp: f64,
+    ) -> Result<JsValue, JsError> {
+        let name = |i: usize, fallback: &str| {
+            paths
+                .get(i)
+                .and_then(JsValue::as_string)
+                .unwrap_or_else(|| fallback.to_owned())
+        };
+        let config = self.pipeline.config();
+        let entry = FrameEntry {
+            index: 0,
+            timestamp,
+            colour: colour.as_ref().map(|_| name(0, "colour image")),
+            depth: name(1, "depth image"),
+            confidence: confidence.as_ref().map(|_| name(2, "confidence image")),
+            calibrated_size: Some(CalibratedSize {
+                width: config.intrinsics.width,
+                height: config.intrinsics.height,
+                file: "the camera settings".to_owned(),
+            }),
+            pose_file: None,
+            missing: None,
+        };
+        let bytes = FrameBytes {
+            colour: colour.as_deref(),
+            depth,
+            confidence: confidence.as_deref(),
+        };
+        let frame = decode_frame_bytes(&entry, &bytes, &config.depth)
+            .map_err(|e| frame_error(timestamp, &e))?;
+        let report = self
+            .pipeline
+            .push_decoded(frame, timestamp)
+            .map_err(|e| frame_error(timestamp, &e))?;
+        Ok(report_to_js(&report))
+    }
+
     /// Processes a frame whose colour image was decoded by the caller (the
     /// page decodes it in the browser: `rgba` is RGBA8 from `getImageData`,
     /// or RGB8, `width` x `height`) with a 16-bit depth PNG, decoded here
@@ -152,7 +208,7 @@ impl Slam {
         Ok(report_to_js(&report))
     }
 
-    /// Depth of the last frame pushed with `pushFrame` or `pushRgbaDepthPng`,
+    /// Depth of the last frame pushed with `pushFrame`, `pushRgbaDepthPng` or `pushFiles`,
     /// if that push was accepted (else empty), resampled to `width` x
     /// `height` (each clamped to 1024): metres, 0 = no measurement,
     /// row-major. For live previews: browsers decode 16-bit PNGs to 8 bits.

@@ -1,6 +1,7 @@
 // Datasets as people have them, on the page: an archive picked (.tgz, .zip;
 // read in place by the wasm ArchiveReader), a 7-Scenes folder (ground truth
-// from its per-frame pose files: ATE and the ground-truth path shown), and a
+// from its per-frame pose files: ATE and the ground-truth path shown), a
+// Stray Scanner export (256x192 depth only, confidence images), and a
 // half-copied folder (a missing image skips its frame, by name). All built
 // from the bundled clip, so no ../shared is needed.
 import { test } from 'node:test';
@@ -8,7 +9,7 @@ import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
 import { SHARED_DATA, startBrowser, openPage, waitForStatus, foreignRequests, saveScreenshot, skipUnlessReady } from './helpers.mjs';
-import { CLIP, makeSevenScenes, tempDir, tumSubset, writeArchive } from '../node/datasets.mjs';
+import { CLIP, makeSevenScenes, makeStray, tempDir, tumSubset, writeArchive } from '../node/datasets.mjs';
 
 const FRAMES = 12;
 
@@ -115,6 +116,85 @@ test('a 7-Scenes folder shows its ground truth and ATE', { timeout: 300_000 }, a
     fs.rmSync(tmp, { recursive: true, force: true });
   }
 });
+
+test('a Stray Scanner folder plays on depth alone, its low-confidence depth dropped', { timeout: 300_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const tmp = tempDir('surfel-slam-page-stray-');
+  const { dir } = makeStray(CLIP, FRAMES, tmp);
+  const env = await startBrowser();
+  try {
+    const { page, consoleErrors } = await openPage(env, '/?sample=0');
+    await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
+    await page.locator('#folder-input').setInputFiles(dir);
+    const status = await waitForStatus(page, (s) => s.sequenceKind === 'stray-scanner' && s.done && !s.playing, {
+      timeoutMs: 120_000,
+      log: (m) => t.diagnostic(m),
+    });
+    await page.waitForTimeout(300);
+    saveScreenshot('stray-scanner-page.png', await page.screenshot());
+    const info = await page.locator('#sequence-info').textContent();
+    t.diagnostic(`${info}; ${status.framesProcessed} frames, ${status.framesLost} lost, ${status.surfels} surfels, errors ${JSON.stringify(status.errors)}`);
+    assert.equal(status.error, null, status.error);
+    assert.equal(status.framesProcessed, FRAMES);
+    assert.equal(status.framesFailed, 0);
+    assert.equal(status.framesLost, 0);
+    assert.match(info, /stray-lidar/);
+    // The native reading of the same folder, surfel for surfel: the same
+    // decode (confidence 0 dropped, grey colour) and the same pipeline.
+    const fresh = tempDir('surfel-slam-page-stray-copy-');
+    const copy = makeStray(CLIP, FRAMES, fresh);
+    const noConfidence = makeStray(CLIP, FRAMES, fresh, 'stray_all_confident', 0);
+    const counts = await page.evaluate(async (folders) => {
+      const m = await import('./pkg/surfel_slam.js');
+      await m.default();
+      const run = ({ name, names, texts, bytes }) => {
+        // As the page's worker reads a folder: the layout's own calibration over the preset.
+        const seq = m.parseSequence(names, texts, name);
+        const preset = typeof seq.preset === 'string' ? seq.preset : seq.preset.name;
+        const slam = new m.Slam({ ...seq.intrinsics, preset });
+        for (const f of seq.frames) {
+          const [depth, confidence] = [new Uint8Array(bytes[f.depth]), new Uint8Array(bytes[f.confidence])];
+          slam.pushFiles(null, depth, confidence, [null, f.depth, f.confidence], f.timestamp);
+        }
+        const n = slam.liveSurfels;
+        slam.free();
+        return n;
+      };
+      return folders.map(run);
+    }, [folderFiles(copy.dir), folderFiles(noConfidence.dir)]);
+    t.diagnostic(`surfels in wasm: ${counts[0]} with a low-confidence band, ${counts[1]} without`);
+    assert.equal(counts[0], status.surfels, 'the page pushes the files as read');
+    assert.ok(counts[0] < counts[1], 'depth of confidence 0 is not mapped');
+    fs.rmSync(fresh, { recursive: true, force: true });
+    assert.deepEqual(consoleErrors.filter((e) => /panicked|unreachable/.test(e)), []);
+  } finally {
+    await env.close();
+    fs.rmSync(tmp, { recursive: true, force: true });
+  }
+});
+
+/** A folder as plain data for page.evaluate: its name, file names, the text of its .csv files and every file's bytes. */
+function folderFiles(dir) {
+  const name = path.basename(dir);
+  const names = [];
+  const texts = {};
+  const bytes = {};
+  const walk = (rel) => {
+    for (const entry of fs.readdirSync(path.join(dir, rel), { withFileTypes: true })) {
+      const sub = rel ? `${rel}/${entry.name}` : entry.name;
+      if (entry.isDirectory()) walk(sub);
+      else {
+        const key = `${name}/${sub}`;
+        names.push(key);
+        const data = fs.readFileSync(path.join(dir, sub));
+        if (sub.endsWith('.csv')) texts[key] = data.toString('utf8');
+        else bytes[key] = Array.from(data);
+      }
+    }
+  };
+  walk('');
+  return { name, names, texts, bytes };
+}
 
 test('a half-copied folder skips the frames whose images are missing', { timeout: 300_000 }, async (t) => {
   if (skipUnlessReady(t)) return;

@@ -134,10 +134,20 @@ export function decodeDepthPng(buffer) {
 }
 
 /** Encodes a 16-bit greyscale PNG. */
-export function encodeDepthPng(width, height, data) {
-  const raw = Buffer.alloc((2 * width + 1) * height);
+export const encodeDepthPng = (width, height, data) => greyPng(width, height, data, 16);
+
+/** Encodes an 8-bit greyscale PNG (a Stray Scanner confidence image). */
+export const encodeGrey8Png = (width, height, data) => greyPng(width, height, data, 8);
+
+function greyPng(width, height, data, bits) {
+  const bytes = bits / 8;
+  const raw = Buffer.alloc((bytes * width + 1) * height);
   for (let y = 0; y < height; y++) {
-    for (let x = 0; x < width; x++) raw.writeUInt16BE(data[y * width + x], y * (2 * width + 1) + 1 + 2 * x);
+    for (let x = 0; x < width; x++) {
+      const at = y * (bytes * width + 1) + 1 + bytes * x;
+      if (bits === 16) raw.writeUInt16BE(data[y * width + x], at);
+      else raw[at] = data[y * width + x];
+    }
   }
   const chunk = (type, body) => {
     const out = Buffer.alloc(12 + body.length);
@@ -150,7 +160,7 @@ export function encodeDepthPng(width, height, data) {
   const ihdr = Buffer.alloc(13);
   ihdr.writeUInt32BE(width, 0);
   ihdr.writeUInt32BE(height, 4);
-  ihdr[8] = 16;
+  ihdr[8] = bits;
   ihdr[9] = 0;
   return Buffer.concat([Buffer.from([137, 80, 78, 71, 13, 10, 26, 10]), chunk('IHDR', ihdr), chunk('IDAT', zlib.deflateSync(raw)), chunk('IEND', Buffer.alloc(0))]);
 }
@@ -209,6 +219,51 @@ export function makeSevenScenes(src, frames, parent, name = 'seven_scenes_teddy'
     fs.writeFileSync(`${stem}.pose.txt`, poseText(pose));
     poses.push(pose.map(Number));
   }
+  return { dir, poses };
+}
+
+/**
+ * A Stray Scanner export `<parent>/<name>/` from the first `frames` depth
+ * images of the TUM folder `src` (Freiburg 3, 640x480) that have a ground-
+ * truth pose: depth resampled (nearest) to 256x192 and written in
+ * millimetres, a confidence image per frame (2, with the leftmost
+ * `lowColumns` columns 0: no depth there), `camera_matrix.csv` at the
+ * 1920x1440 colour resolution (Freiburg 3's intrinsics times 3), and the
+ * ground truth as `odometry.csv` (9 columns). No rgb/: depth only. Returns
+ * { dir, poses }.
+ */
+export function makeStray(src, frames, parent, name = 'stray_teddy', lowColumns = 32) {
+  const dir = path.join(parent, name);
+  for (const sub of ['depth', 'confidence']) fs.mkdirSync(path.join(dir, sub), { recursive: true });
+  const depth = rows(fs.readFileSync(path.join(src, 'depth.txt'), 'utf8'));
+  const gt = rows(fs.readFileSync(path.join(src, 'groundtruth.txt'), 'utf8'));
+  const [fx, fy, cx, cy] = [535.4, 539.2, 320.1, 247.6];
+  fs.writeFileSync(path.join(dir, 'camera_matrix.csv'), `${3 * fx}, 0.0, ${3 * cx}\n0.0, ${3 * fy}, ${3 * cy}\n0.0, 0.0, 1.0\n`);
+  let odometry = 'timestamp, frame, x, y, z, qx, qy, qz, qw\n';
+  const poses = [];
+  const [w, h] = [256, 192];
+  for (const [t, file] of depth) {
+    if (poses.length === frames) break;
+    let pose = null;
+    for (const r of gt) if (Math.abs(Number(r[0]) - Number(t)) <= 0.02 && (!pose || Math.abs(Number(r[0]) - Number(t)) < Math.abs(Number(pose[0]) - Number(t)))) pose = r;
+    if (!pose) continue;
+    const png = decodeDepthPng(fs.readFileSync(path.join(src, file)));
+    const mm = new Uint16Array(w * h);
+    const confidence = new Uint8Array(w * h);
+    for (let v = 0; v < h; v++) {
+      for (let u = 0; u < w; u++) {
+        const [su, sv] = [Math.floor((u + 0.5) * (png.width / w)), Math.floor((v + 0.5) * (png.height / h))];
+        mm[v * w + u] = Math.round(png.data[sv * png.width + su] / 5);
+        confidence[v * w + u] = u < lowColumns ? 0 : 2;
+      }
+    }
+    const stem = String(poses.length).padStart(6, '0');
+    fs.writeFileSync(path.join(dir, 'depth', `${stem}.png`), encodeDepthPng(w, h, mm));
+    fs.writeFileSync(path.join(dir, 'confidence', `${stem}.png`), encodeGrey8Png(w, h, confidence));
+    odometry += `${t}, ${poses.length}, ${pose.slice(1).join(', ')}\n`;
+    poses.push([Number(t), ...pose.slice(1).map(Number)]);
+  }
+  fs.writeFileSync(path.join(dir, 'odometry.csv'), odometry);
   return { dir, poses };
 }
 
