@@ -384,7 +384,11 @@ const handlers = {
   [FromWorker.SEQUENCE](msg) {
     const openedSession = status.session?.name;
     if (loading?.name === msg.name) lastLoad = loading;
-    const groundTruth = new GroundTruthTrack(msg.groundTruth, msg.kind);
+    // Without ground truth, the device's odometry (Stray Scanner) is the reference drawn, named as such.
+    const odometry = msg.groundTruth.length ? [] : (msg.odometry ?? []);
+    const groundTruth = new GroundTruthTrack(msg.groundTruth.length ? msg.groundTruth : odometry, msg.kind);
+    status.reference = msg.groundTruth.length ? 'ground truth' : odometry.length ? "device's odometry" : null;
+    $('reference-name').textContent = odometry.length ? "device's odometry" : 'ground truth';
     sequence = { name: msg.name, kind: msg.kind, preset: msg.preset, frameCount: msg.frameCount, groundTruth };
     settings.sequencePreset = msg.preset;
     setDisplayFrame(msg.config);
@@ -399,7 +403,11 @@ const handlers = {
     clearMap();
     const { preset, ...overrides } = msg.config ?? {};
     settings.show(msg.preset, overrides);
-    const gt = msg.groundTruth.length ? `, ground truth ${msg.groundTruth.length} poses` : ', no ground truth';
+    const gt = msg.groundTruth.length
+      ? `, ground truth ${msg.groundTruth.length} poses`
+      : odometry.length
+        ? `, no ground truth, the device's odometry ${odometry.length} poses`
+        : ', no ground truth';
     sequence.line = `${msg.name} — ${msg.kind}, ${msg.frameCount} frames${gt}, camera ${msg.preset}`;
     ui.sequenceInfo.textContent = sequence.line;
     for (const w of msg.warnings ?? []) reportWarning(w);

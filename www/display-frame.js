@@ -49,15 +49,16 @@ export class DisplayFrame {
 }
 
 /**
- * The ground truth as the page draws it: anchored to the estimate at the
- * first frame with a ground-truth pose (the ATE in the statistics aligns the
- * whole trajectory instead, in the worker).
+ * The ground truth as the page draws it (or, for a sequence without one,
+ * the recording device's own odometry): anchored to the estimate at the
+ * first frame with a pose (the ATE in the statistics aligns the whole
+ * trajectory instead, in the worker).
  */
 export class GroundTruthTrack {
   /** rows: [t, tx, ty, tz, qx, qy, qz, qw] (world_from_camera, metres); kind: the dataset's. */
   constructor(rows, kind) {
     this.rows = [...rows].sort((a, b) => a[0] - b[0]); // at() searches by time
-    this.tolerance = kind === 'tum' ? 0.02 : 0.5; // seconds (TUM) or frame numbers
+    this.tolerance = kind === 'tum' || kind === 'stray-scanner' ? 0.02 : 0.5; // seconds (TUM, Stray Scanner) or frame numbers
     this.align = null; // display-frame transform from the ground truth to the estimate
   }
 

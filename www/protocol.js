@@ -43,7 +43,7 @@ export const ToWorker = Object.freeze({
 export const FromWorker = Object.freeze({
   /** {module: 'threads'|'simd', threads, presets, notes, frameReader}: the module is loaded. */
   READY: 'ready',
-  /** {name, kind, preset, config, frameCount, groundTruth, fileCount, warnings, session?}: a sequence was opened (session: as SESSION_OPENED's, when it goes on from an opened session) (warnings: camera settings that do not fit its layout). */
+  /** {name, kind, preset, config, frameCount, groundTruth, odometry, fileCount, warnings, session?}: a sequence was opened (session: as SESSION_OPENED's, when it goes on from an opened session) (warnings: camera settings that do not fit its layout). */
   SEQUENCE: 'sequence',
   /** {index, frameCount, timestamp, result, surfels, refresh, ate, wasmMemoryBytes, timing, input, flow, done}: one frame processed (wasmMemoryBytes: the module's linear memory, its peak). */
   FRAME: 'frame',

@@ -260,6 +260,8 @@ async function load({ name, entries, autoplay, options }) {
     return;
   }
   const groundTruth = (parsed.groundTruth || []).map((row) => Array.from(row));
+  // The recording device's own trajectory (Stray Scanner: ARKit's), drawn like ground truth but named as what it is.
+  const odometry = (parsed.odometry || []).map((row) => Array.from(row));
   // Slam.ate reads the ground truth as TUM text ('' when there is none).
   seq = { id: ++seqCounter, name, kind: parsed.kind, source, frames: parsed.frames, gtTum: parsed.groundTruthTum || null, layoutPreset: preset };
   // The sequence a session was saved from (its download is <sequence>.slam)
@@ -274,6 +276,7 @@ async function load({ name, entries, autoplay, options }) {
     config: newConfig,
     frameCount: seq.frames.length,
     groundTruth,
+    odometry,
     fileCount: paths.length,
     warnings: layoutWarnings(preset),
     session: continued,

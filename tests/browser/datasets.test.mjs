@@ -117,7 +117,7 @@ test('a 7-Scenes folder shows its ground truth and ATE', { timeout: 300_000 }, a
   }
 });
 
-test('a Stray Scanner folder plays on depth alone, its low-confidence depth dropped', { timeout: 300_000 }, async (t) => {
+test('a Stray Scanner folder plays on depth alone, its low-confidence depth dropped, beside its odometry', { timeout: 300_000 }, async (t) => {
   if (skipUnlessReady(t)) return;
   const tmp = tempDir('surfel-slam-page-stray-');
   const { dir } = makeStray(CLIP, FRAMES, tmp);
@@ -139,6 +139,11 @@ test('a Stray Scanner folder plays on depth alone, its low-confidence depth drop
     assert.equal(status.framesFailed, 0);
     assert.equal(status.framesLost, 0);
     assert.match(info, /stray-lidar/);
+    // Its odometry (here the clip's ground truth) is drawn as the reference, named as the device's.
+    assert.match(info, new RegExp(`no ground truth, the device's odometry ${FRAMES} poses`));
+    assert.equal(status.reference, "device's odometry");
+    assert.equal(await page.locator('#reference-name').textContent(), "device's odometry");
+    assert.ok(Number.isFinite(status.positionErrorCm) && status.positionErrorCm < 2, `${status.positionErrorCm} cm from the odometry`);
     // The native reading of the same folder, surfel for surfel: the same
     // decode (confidence 0 dropped, grey colour) and the same pipeline.
     const fresh = tempDir('surfel-slam-page-stray-copy-');
