@@ -464,3 +464,68 @@ fn malformed_files_are_refused_naming_the_file() {
         answer.stderr
     );
 }
+
+/// `Pipeline::push_decoded` (the page's `Slam.pushFiles`): a Stray frame's
+/// files decoded by `decode_frame_bytes` run as the CLI runs them; a
+/// refused decode is handed back and leaves no last decoded frame (the
+/// page shows no stale depth), and the map as it was.
+#[test]
+fn decoded_files_push_like_the_cli_and_a_refused_decode_changes_nothing() {
+    use surfel_slam::dataset::{decode_frame_bytes, FrameBytes};
+    use surfel_slam::{Pipeline, PipelineError, SlamConfig};
+    let dir = scratch("stray-push-decoded");
+    write_stray(&dir.0, 3, false);
+    let sequence = Sequence::open(&dir.0).expect("opens");
+    let mut config = SlamConfig::from_preset(sequence.preset);
+    config.intrinsics = sequence.intrinsics.expect("from camera_matrix.csv");
+    let mut slam = Pipeline::new(config.clone()).expect("valid");
+    let read = |name: &Option<String>| name.as_ref().map(|n| std::fs::read(dir.0.join(n)).unwrap());
+    let decode = |i: usize, confidence: Option<&[u8]>| {
+        let entry = &sequence.frames[i];
+        let depth = std::fs::read(dir.0.join(&entry.depth)).unwrap();
+        decode_frame_bytes(
+            entry,
+            &FrameBytes {
+                colour: None,
+                depth: &depth,
+                confidence,
+            },
+            &config.depth,
+        )
+        .map_err(|e| e.to_string())
+    };
+    // The errors' type only has to take the pipeline's.
+    #[derive(Debug)]
+    struct Refused(String);
+    impl From<PipelineError> for Refused {
+        fn from(e: PipelineError) -> Self {
+            Self(e.to_string())
+        }
+    }
+    for i in 0..2 {
+        let confidence = read(&sequence.frames[i].confidence);
+        let frame = decode(i, confidence.as_deref()).map_err(Refused);
+        let report = slam
+            .push_decoded(frame, sequence.frames[i].timestamp)
+            .expect("pushed");
+        assert!(report.verdict.is_fused(), "{:?}", report.verdict);
+        assert!(slam.last_decoded_frame().is_some());
+    }
+    let surfels = slam.map().live_len();
+    // A confidence image of another size: refused by name, nothing changed.
+    let small = std::fs::read(dir.0.join(sequence.frames[0].confidence.as_ref().unwrap())).unwrap();
+    let truncated = &small[..small.len() / 2];
+    let refused = slam
+        .push_decoded(
+            decode(2, Some(truncated)).map_err(Refused),
+            sequence.frames[2].timestamp,
+        )
+        .expect_err("a broken confidence image");
+    assert!(refused.0.contains("confidence"), "{}", refused.0);
+    assert!(slam.last_decoded_frame().is_none());
+    assert_eq!((slam.frames(), slam.map().live_len()), (2, surfels));
+    // A push the pipeline refuses (a NaN timestamp) is handed back too.
+    let frame = decode(2, None).map_err(Refused);
+    assert!(slam.push_decoded(frame, f64::NAN).is_err());
+    assert_eq!(slam.frames(), 2);
+}

@@ -87,20 +87,21 @@ impl Pipeline {
     }
 
     /// Processes a frame the caller decoded (a dataset frame's files, see
-    /// `dataset::decode_frame_bytes`), kept afterwards as
+    /// `dataset::decode_frame_bytes`): `decoded` is the decode's outcome, an
+    /// error handed back as it is. An accepted frame is kept afterwards as
     /// [`Pipeline::last_decoded_frame`] (the page's depth preview) like the
-    /// frames of [`Self::push_png`]. On error nothing changes.
-    pub fn push_decoded(
+    /// frames of [`Self::push_png`]; after a refused one (its decode or its
+    /// push) there is none. Otherwise a refusal changes nothing.
+    pub fn push_decoded<E: From<PipelineError>>(
         &mut self,
-        frame: RgbdFrame,
+        decoded: Result<RgbdFrame, E>,
         timestamp: f64,
-    ) -> Result<FrameReport, PipelineError> {
+    ) -> Result<FrameReport, E> {
         self.decoded_was_pushed = false;
-        let pushed = self.push_frame(&frame, timestamp);
-        if pushed.is_ok() {
-            self.decoded = frame;
-            self.decoded_was_pushed = true;
-        }
-        pushed
+        let frame = decoded?;
+        let report = self.push_frame(&frame, timestamp)?;
+        self.decoded = frame;
+        self.decoded_was_pushed = true;
+        Ok(report)
     }
 }

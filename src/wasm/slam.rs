@@ -155,12 +155,9 @@ impl Slam {
             depth,
             confidence: confidence.as_deref(),
         };
-        let frame = decode_frame_bytes(&entry, &bytes, &config.depth)
-            .map_err(|e| frame_error(timestamp, &e))?;
-        let report = self
-            .pipeline
-            .push_decoded(frame, timestamp)
-            .map_err(|e| frame_error(timestamp, &e))?;
+        let decoded = decode_frame_bytes(&entry, &bytes, &config.depth)
+            .map_err(|e| frame_error(timestamp, &e));
+        let report = self.pipeline.push_decoded(decoded, timestamp)?;
         Ok(report_to_js(&report))
     }
 

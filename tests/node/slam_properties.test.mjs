@@ -1,8 +1,10 @@
 // Stateful property test of the wasm `Slam` under Node (the same family as
 // tests/pipeline_properties.rs natively): seeded random sequences of valid
-// frames (the bundled TUM fr3/teddy clip, played forwards and backwards),
+// frames (the bundled TUM fr3/teddy clip, played forwards and backwards;
+// a quarter pushed as their files with pushFiles),
 // garbage (truncated or corrupt PNG, wrong size, 8-bit depth, colour/depth
-// size mismatch, wrong buffer lengths, NaN or infinite timestamps), reset,
+// size mismatch, wrong buffer lengths, NaN or infinite timestamps, a depth
+// or confidence image of the wrong size given to pushFiles), reset,
 // a new configuration (free + new Slam, as the page does), PLY export,
 // changed range, trajectory and depth preview, in any order; one case runs
 // 110 frames (past the cleanups, spatial sorting and compaction) and resets.
@@ -98,7 +100,8 @@ function runCase(m, clip, garbage, seed, steps, firstRun, log) {
       if (roll < 72) {
         const [colour, depth] = clip.frame(order[cursor++]);
         clock = Math.round((clock + 1 / 30) * 1e6) / 1e6; // exact in the trajectory's text
-        const report = slam.pushFrame(colour, depth, clock);
+        // A quarter of the frames as their files (pushFiles, the page's path for Stray Scanner): the same decode.
+        const report = r.below(4) === 0 ? slam.pushFiles(colour, depth, null, ['c.png', 'd.png', null], clock) : slam.pushFrame(colour, depth, clock);
         model.accepted.push(clock);
         model.last = report;
         cov.frames++;
@@ -108,7 +111,7 @@ function runCase(m, clip, garbage, seed, steps, firstRun, log) {
       } else if (roll < 84) {
         const [colour, depth] = clip.frame(order[cursor]);
         const before = [slam.frames, slam.surfelCount, slam.liveSurfels];
-        const kind = r.below(8);
+        const kind = r.below(10);
         const attempts = [
           () => slam.pushFrame(colour, depth.subarray(0, 1 + r.below(depth.length - 2)), clock + 1),
           () => {
@@ -122,6 +125,8 @@ function runCase(m, clip, garbage, seed, steps, firstRun, log) {
           () => slam.pushRgbaDepthPng(640, 480, new Uint8Array(640 * 480 * 4 - 1), depth, clock + 1),
           () => slam.pushRaw(640, 480, new Uint8Array(640 * 480 * 4), new Uint16Array(640 * 479), clock + 1),
           () => slam.pushFrame(colour, depth, [NaN, Infinity, -Infinity][r.below(3)]),
+          () => slam.pushFiles(colour, garbage.smallDepth, null, ['c.png', 'd.png', null], clock + 1),
+          () => slam.pushFiles(null, depth, garbage.smallDepth, [null, 'd.png', 'c.png'], clock + 1),
         ];
         assert.throws(attempts[kind], kind === 7 ? /timestamp must be a finite number/ : Error, `${where}: garbage ${kind}`);
         assert.deepEqual([slam.frames, slam.surfelCount, slam.liveSurfels], before, `${where}: garbage ${kind} changed the state`);
