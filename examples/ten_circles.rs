@@ -7,7 +7,8 @@
 //! tracker). After each circle:
 //! surfels, array slots, peak and current RSS, the circle's median
 //! milliseconds a frame, verdicts, loop closures (all / global) and ATE
-//! so far.
+//! so far; and each closure as it happens, with the current pose's distance
+//! from the truth before and after it.
 //!
 //! `cargo run --release --example ten_circles [-- --circles N]
 //! [--frames-per-circle N] [--clean]`
@@ -78,6 +79,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             lost += usize::from(matches!(report.verdict, Verdict::Lost(_)));
             held += usize::from(report.verdict == Verdict::Held);
             truth.push((i as f64, origin * pose));
+            let outcome = &report.loop_outcome;
+            if outcome.closed {
+                // How far the current pose was from the truth before and after the bend.
+                let true_pose = origin * pose;
+                let off =
+                    |p: &glam::DAffine3| 100.0 * (p.translation - true_pose.translation).length();
+                let what = match &outcome.global {
+                    Some(g) if g.closed => format!(
+                        "global, keyframe {}, correction {:.2} cm {:.2} deg",
+                        g.keyframe_frame,
+                        100.0 * g.correction_m,
+                        g.correction_deg
+                    ),
+                    _ => "local".to_string(),
+                };
+                println!(
+                    "  frame {i}: {what} closure, pose {:.2} cm from the truth before, {:.2} cm after",
+                    off(&outcome.tracked),
+                    off(&report.world_from_camera)
+                );
+            }
             last = Some(report);
         }
         ms.sort_by(f64::total_cmp);
