@@ -47,6 +47,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             seed: 1,
         });
     }
+    config.tracker.verify.dead_reckoning_min_inliers = arg(
+        &args,
+        "--dead-reckoning-min",
+        config.tracker.verify.dead_reckoning_min_inliers,
+    );
+    config.tracker.verify.dead_reckoning = !args.iter().any(|a| a == "--no-dead-reckoning");
     let scene = Scene::room();
     let mut slam = Pipeline::new(config.clone())?;
     let origin = path.pose(0.0).inverse();

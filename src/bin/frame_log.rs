@@ -10,7 +10,9 @@
 //! recovered, unplaced, unreadable), `lost_reason`, `inliers`,
 //! `residual_mm`, `conditioning`, `tx ty tz qx qy qz qw` (the online
 //! `world_from_camera`, metres), `rpe_cm`, `rpe_deg` (the error of the
-//! motion since the last fused frame; empty without truth for both).
+//! motion since the last fused frame; empty without truth for both),
+//! `dead_reckoned` (1 for a lost frame whose pose the sparse estimate
+//! carried on from the frame before, else 0).
 
 use anyhow::{Context, Result};
 use glam::DAffine3;
@@ -24,7 +26,7 @@ use crate::MAX_DT;
 
 /// The header row.
 const HEADER: &str = "frame,timestamp,verdict,lost_reason,inliers,residual_mm,conditioning,\
-tx,ty,tz,qx,qy,qz,qw,rpe_cm,rpe_deg";
+tx,ty,tz,qx,qy,qz,qw,rpe_cm,rpe_deg,dead_reckoned";
 
 /// The rows so far, and the previous input frame's pose and truth.
 pub struct FrameLog<'a> {
@@ -90,14 +92,14 @@ impl<'a> FrameLog<'a> {
             }
             None => self.text.push_str(",,,,,,,,,"),
         }
-        self.text.push('\n');
+        let _ = writeln!(self.text, ",{}", u8::from(report.checks.dead_reckoned));
     }
 
     /// Adds the row of a frame that could not be read or was refused.
     pub fn record_unreadable(&mut self, entry: &FrameEntry) {
         let _ = writeln!(
             self.text,
-            "{},{},unreadable,,,,,,,,,,,,,",
+            "{},{},unreadable,,,,,,,,,,,,,,",
             entry.index, entry.timestamp
         );
     }

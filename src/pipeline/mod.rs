@@ -28,8 +28,8 @@ use crate::clock::now_ms;
 use crate::features::SparseEstimator;
 use crate::frame::{DecodeScratch, RgbdFrame};
 use crate::fusion::{
-    merge_copies, remove_unstable, FusionStats, Integrator, Measured, Prediction, SpatialOrder,
-    SurfelMap,
+    merge_copies, remove_unstable, DepthTiles, FusionStats, Integrator, Measured, Prediction,
+    SpatialOrder, SurfelMap,
 };
 use crate::loop_closure::relocalise::Relocaliser;
 use crate::loop_closure::{GlobalLook, LoopCloser, LoopFrame, LoopOutcome};
@@ -66,7 +66,16 @@ pub struct Pipeline {
     trajectory: Vec<(f64, DAffine3)>,
     /// Each frame's pose as tracked, before any loop closure moved it.
     online_trajectory: Vec<(f64, DAffine3)>,
+    /// Pose of the last placed frame (`world_from_camera`): the last fused
+    /// one or, while lost, the last one dead-reckoned
+    /// ([`crate::track::verify::VerifyConfig::dead_reckoning`]). The
+    /// prediction and the sparse reference are that frame's.
     last_good: Option<DAffine3>,
+    /// Index of that frame.
+    placed_frame: u32,
+    /// Depth tiles of a dead-reckoned frame, which hide what lies behind
+    /// it in its prediction (a fused frame's are the integrator's).
+    lost_tiles: DepthTiles,
     frame_index: u32,
     counts: VerdictCounts,
     recovery: TrackerConfig,
@@ -119,6 +128,8 @@ impl Pipeline {
             trajectory: Vec::new(),
             online_trajectory: Vec::new(),
             last_good: None,
+            placed_frame: 0,
+            lost_tiles: DepthTiles::default(),
             frame_index: 0,
             counts: VerdictCounts::default(),
             localising: None,
@@ -206,6 +217,7 @@ impl Pipeline {
         self.trajectory.clear();
         self.online_trajectory.clear();
         self.last_good = None;
+        self.placed_frame = 0;
         self.sparse.clear();
         self.relocaliser.clear();
         self.velocity = None;
@@ -277,6 +289,7 @@ impl Pipeline {
         self.preprocess(frame);
         let t1 = now_ms();
         let mut tracked = self.track();
+        self.dead_reckon(&mut tracked);
         let as_tracked = tracked.pose;
         let t2 = now_ms();
         let mut fusion = FusionStats::default();
@@ -452,15 +465,44 @@ impl Pipeline {
     /// memory of this frame, the constant-velocity motion and the sparse
     /// estimator's reference.
     fn predict(&mut self, pose: &DAffine3) {
+        // The warm-up counts fused frames: frames lost early must not end
+        // it before the map had the frames to become stable.
+        self.render_prediction(pose, self.counts.fused(), false);
+        // The motion of two fused frames in a row: the next frame's
+        // constant-velocity start.
+        self.velocity = match (self.last_good, self.counts.lost_streak) {
+            (Some(before), 0) => Some(before.inverse() * *pose),
+            _ => None,
+        };
+        self.place_current(pose);
+        self.relocaliser.remember(pose, self.frame_index);
+    }
+
+    /// The current frame becomes the placed one, at `pose`: the
+    /// photometric memory, the sparse estimator's reference and the last
+    /// good pose are its.
+    fn place_current(&mut self, pose: &DAffine3) {
+        self.tracker
+            .remember_frame(&self.pyramid, pose, &self.config.tracker);
+        self.sparse.current_becomes_reference();
+        self.last_good = Some(*pose);
+        self.placed_frame = self.frame_index;
+    }
+
+    /// Renders the model prediction from `pose`, the current frame's: its
+    /// measured points hide what lies behind them (with the integrator's
+    /// depth tiles for a fused frame, `lost_tiles` for a dead-reckoned
+    /// one); `fused` frames so far decide the warm-up.
+    fn render_prediction(&mut self, pose: &DAffine3, fused: u32, lost: bool) {
         let k = self.config.working_intrinsics();
         let fusion_cfg = self.config.fusion;
         let map = &self.map;
-        // The warm-up counts fused frames: frames lost early must not end
-        // it before the map had the frames to become stable.
-        let fused = self.counts.fused();
         let far_m = self.config.depth.max_m;
-        // The frame just fused was taken from `pose`: what it measured
-        // hides what lies behind.
+        let tiles = if lost {
+            &self.lost_tiles
+        } else {
+            self.integrator.depth_tiles()
+        };
         self.prediction.render(
             map,
             pose,
@@ -468,23 +510,12 @@ impl Pipeline {
             (fusion_cfg.depth_gate_m, far_m),
             Measured {
                 vertices: self.pyramid.levels.first().map_or(&[], |l| &l.vertices),
-                tiles: self.integrator.depth_tiles(),
+                tiles,
             },
             // The frame being processed: `frame_index` moves on after `predict`.
             fusion_cfg.active_at(self.frame_index),
             |i| fusion_cfg.predicts(map, i, fused),
         );
-        self.tracker
-            .remember_frame(&self.pyramid, pose, &self.config.tracker);
-        // The motion of two fused frames in a row: the next frame's
-        // constant-velocity start.
-        self.velocity = match (self.last_good, self.counts.lost_streak) {
-            (Some(before), 0) => Some(before.inverse() * *pose),
-            _ => None,
-        };
-        self.sparse.current_becomes_reference();
-        self.relocaliser.remember(pose, self.frame_index);
-        self.last_good = Some(*pose);
     }
 
     /// Stage `count_verdict`: the run's verdict counts and lost streak.

@@ -392,6 +392,55 @@ impl Judge<'_> {
 }
 
 impl Pipeline {
+    /// A lost frame carried on from the last placed one by the sparse
+    /// estimate ([`crate::track::verify::VerifyConfig::dead_reckoning`]):
+    /// with enough tight inlier matches and a motion the tracker allows in
+    /// one frame, the frame is placed at the estimate (still lost, not
+    /// fused), and the next frame is tracked from it, against the model
+    /// seen from it. Other frames pass unchanged.
+    pub(super) fn dead_reckon(&mut self, tracked: &mut Tracked) {
+        let verify = self.config.tracker.verify;
+        if !verify.dead_reckoning || !matches!(tracked.verdict, Verdict::Lost(_)) {
+            return;
+        }
+        let Some(placed) = self.last_good else {
+            return;
+        };
+        if !tracked.checks.sparse_ran && self.sparse.has_reference() {
+            // The track stage did not ask (the dense result failed before
+            // any estimate was needed).
+            tracked.checks.sparse_ran = true;
+            if let Some(estimate) = self.sparse.estimate() {
+                tracked.checks.sparse =
+                    Some((placed * estimate.reference_from_current, estimate.inliers));
+                tracked.checks.sparse_rms_m = estimate.rms_m;
+            }
+        }
+        let Some((pose, inliers)) = tracked.checks.sparse else {
+            return;
+        };
+        let normal = &self.config.tracker;
+        let (dt, dr) = se3::motion_magnitude(&(placed.inverse() * pose));
+        let plausible =
+            dt <= normal.max_translation_m && dr.to_degrees() <= normal.max_rotation_deg;
+        if !(pose.is_finite()
+            && plausible
+            && inliers >= verify.dead_reckoning_min_inliers
+            && tracked.checks.sparse_rms_m <= verify.sparse_only_max_rms_m)
+        {
+            return;
+        }
+        tracked.pose = pose;
+        tracked.checks.dead_reckoned = true;
+        let k = self.config.working_intrinsics();
+        let vertices = self.pyramid.levels.first().map_or(&[][..], |l| &l.vertices);
+        self.lost_tiles.build(vertices, k.width);
+        self.render_prediction(&pose, self.counts.fused(), true);
+        self.place_current(&pose);
+    }
+}
+
+impl Pipeline {
     /// The frame placed by relocalisation against every keyframe and the
     /// map's stable surfels, whenever last seen (as the prediction's, the
     /// warm-up counts fused frames); `None` when no keyframe places it.

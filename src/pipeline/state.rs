@@ -22,8 +22,12 @@ pub struct PipelineScalars {
     pub frames: u32,
     /// Verdict counts and the lost streak.
     pub counts: VerdictCounts,
-    /// Pose of the last fused frame (`world_from_camera`, metres).
+    /// Pose of the last placed frame (`world_from_camera`, metres): the
+    /// last fused one, or while lost the last one dead-reckoned.
     pub last_good: Option<DAffine3>,
+    /// Index of that frame (`None`: the last fused one, as sessions saved
+    /// before dead reckoning have it).
+    pub placed_frame: Option<u32>,
     /// `previous_from_current` of the last two fused frames in a row.
     pub velocity: Option<DAffine3>,
     /// Loop closures, global ones, frame of the last global one.
@@ -126,6 +130,7 @@ impl Pipeline {
                 frames: self.frame_index,
                 counts: self.counts,
                 last_good: self.last_good,
+                placed_frame: Some(self.placed_frame),
                 velocity: self.velocity,
                 loop_counters: self.loop_closer.counters(),
                 depth_checked: self.settings_check.depth_checked,
@@ -177,6 +182,14 @@ impl Pipeline {
         p.frame_index = s.frames;
         p.counts = s.counts;
         p.last_good = s.last_good;
+        let last_fused = s.frames.saturating_sub(1 + s.counts.lost_streak);
+        p.placed_frame = s.placed_frame.unwrap_or(last_fused);
+        if p.placed_frame < last_fused || (s.frames > 0 && p.placed_frame >= s.frames) {
+            return Err(bad(format!(
+                "placed frame {} for {frames} frames, the last fused {last_fused}",
+                p.placed_frame
+            )));
+        }
         p.velocity = s.velocity;
         p.loop_closer.restore_counters(s.loop_counters);
         p.settings_check.depth_checked = s.depth_checked;
@@ -194,7 +207,7 @@ impl Pipeline {
     }
 
     /// The sparse estimator's reference and the model prediction, as the
-    /// last fused frame (`last`) left them.
+    /// last placed frame (`last`) left them.
     fn restore_last_fused(
         &mut self,
         last: &LastFusedFrame<Vec<u8>, Vec<Vec3>>,
@@ -210,10 +223,12 @@ impl Pipeline {
             .restore_reference(&last.rgb, &last.vertices, last.width, last.height)
             .map_err(|e| e.to_string())?;
         let pose = self.last_good.ok_or("no pose of the last fused frame")?;
-        // The frame `predict` ran on: the last one before the lost streak;
-        // its warm-up count did not include it yet.
-        let index = self.frame_index - 1 - self.counts.lost_streak;
-        let fused = self.counts.fused().saturating_sub(1);
+        // The frame placed last: fused (the last one before the lost
+        // streak, whose warm-up count did not include it yet) or
+        // dead-reckoned during the streak.
+        let index = self.placed_frame;
+        let was_fused = index + 1 + self.counts.lost_streak == self.frame_index;
+        let fused = self.counts.fused().saturating_sub(u32::from(was_fused));
         let mut tiles = DepthTiles::default();
         tiles.build(&last.vertices, k.width);
         let fusion_cfg = self.config.fusion;

@@ -88,8 +88,12 @@ pub struct Manifest {
     pub frames: u32,
     /// Verdict counts `[tracked, lost, recovered, held, lost_streak]`.
     pub counts: [u32; 5],
-    /// Pose of the last fused frame.
+    /// Pose of the last placed frame (fused, or dead-reckoned while lost).
     pub last_good: Option<[f64; 12]>,
+    /// Index of that frame (absent in sessions saved before dead
+    /// reckoning: the last fused one).
+    #[serde(default)]
+    pub placed_frame: Option<u32>,
     /// Motion of the last two fused frames in a row (`previous_from_current`).
     pub velocity: Option<[f64; 12]>,
     /// Loop closures so far.
@@ -129,6 +133,7 @@ impl Manifest {
             frames: s.frames,
             counts: [c.tracked, c.lost, c.recovered, c.held, c.lost_streak],
             last_good: s.last_good.as_ref().map(pose_to_rows),
+            placed_frame: s.placed_frame,
             velocity: s.velocity.as_ref().map(pose_to_rows),
             loop_closures: s.loop_counters.0,
             global_loop_closures: s.loop_counters.1,
@@ -182,6 +187,7 @@ impl Manifest {
                 lost_streak,
             },
             last_good: self.last_good.as_ref().map(pose_from_rows),
+            placed_frame: self.placed_frame,
             velocity: self.velocity.as_ref().map(pose_from_rows),
             loop_counters: (
                 self.loop_closures,

@@ -72,6 +72,23 @@ pub struct VerifyConfig {
     /// (stride 8: one frame lost and one recovered, against none);
     /// ICL-NUIM kt0 unchanged at 0.011-0.012 cm (strides 1/5/10/15).
     pub constant_velocity: bool,
+    /// While lost, carry the pose from frame to frame on the sparse
+    /// estimate (each lost frame against the last one placed) and look for
+    /// the model from there, instead of waiting at the last fused pose: a
+    /// camera swung away from the map moves on meanwhile, and comes back
+    /// where the last fused view no longer reaches (`examples/swings.rs`).
+    /// Lost frames are still not fused. Off in sessions saved before it
+    /// existed.
+    #[serde(default)]
+    pub dead_reckoning: bool,
+    /// A lost frame is carried on only by an estimate with at least this
+    /// many inlier matches (and an inlier RMS within `sparse_only_max_rms_m`).
+    #[serde(default = "default_dead_reckoning_min_inliers")]
+    pub dead_reckoning_min_inliers: usize,
+}
+
+fn default_dead_reckoning_min_inliers() -> usize {
+    12
 }
 
 impl Default for VerifyConfig {
@@ -91,6 +108,8 @@ impl Default for VerifyConfig {
             sparse_only_min_inliers: 50,
             sparse_only_max_rms_m: 0.03,
             constant_velocity: true,
+            dead_reckoning: true,
+            dead_reckoning_min_inliers: default_dead_reckoning_min_inliers(),
         }
     }
 }
@@ -255,6 +274,9 @@ pub struct TrackingChecks {
     /// When the frame was lost and then placed by relocalisation: the
     /// frame index of the keyframe it was placed by.
     pub relocalised_from: Option<u32>,
+    /// Whether a lost frame's pose was carried on from the last placed
+    /// frame by the sparse estimate ([`VerifyConfig::dead_reckoning`]).
+    pub dead_reckoned: bool,
 }
 
 #[cfg(test)]

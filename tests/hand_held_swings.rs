@@ -1,0 +1,158 @@
+//! A hand-held camera swung away from the map and back (issue #52): the
+//! synthetic room along its known path, turned 60 degrees aside and back in
+//! 6 frames each way (`synthetic::SwingPath`), colour blurred over half a
+//! frame of motion, 320x240. The turn outruns the dense tracker and the
+//! aside view shows nothing mapped, so frames are lost; meanwhile the path
+//! moves on. Dead reckoning (each lost frame carried on from the one before
+//! by the sparse estimate) brings the camera back where the model is
+//! found again; without it the loss never ends (`examples/swings.rs`).
+//! A session saved during a dead-reckoned loss continues exactly.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
+
+mod common;
+
+use common::run_bits::RunBits as Bits;
+use glam::DAffine3;
+use std::io::Cursor;
+use surfel_slam::eval::ate;
+use surfel_slam::synthetic::{self, render_blurred, NoiseModel, Scene, SwingPath};
+use surfel_slam::{session, CameraPreset, Intrinsics, Pipeline, RgbdFrame, SlamConfig, Verdict};
+
+/// Frames 0..FRAMES: two swings (from frames 40 and 110) and what follows.
+const FRAMES: usize = 180;
+
+fn config(dead_reckoning: bool) -> SlamConfig {
+    let mut config = SlamConfig::from_preset(CameraPreset::TumFr3);
+    config.intrinsics = Intrinsics::new(262.5, 262.5, 159.5, 119.5, 320, 240);
+    config.depth = synthetic::depth_settings();
+    config.tracker.verify.dead_reckoning = dead_reckoning;
+    config
+}
+
+fn path() -> SwingPath {
+    SwingPath {
+        amplitude_deg: 60.0,
+        swing_frames: 6.0,
+        ..SwingPath::default()
+    }
+}
+
+/// The rendered frames and the true `world_from_camera` of each (the first
+/// frame's camera is the world).
+fn frames(config: &SlamConfig) -> (Vec<RgbdFrame>, Vec<(f64, DAffine3)>) {
+    let (scene, path) = (Scene::room(), path());
+    let origin = path.pose(0.0).inverse();
+    (0..FRAMES)
+        .map(|i| {
+            let t = i as f64;
+            let rendered = render_blurred(
+                &scene,
+                &config.intrinsics,
+                &path.exposure(t, 0.5, 5),
+                &NoiseModel::none(),
+                i as u64,
+            );
+            let frame = rendered.to_frame(&config.depth).expect("a valid frame");
+            (frame, (t, origin * path.pose(t)))
+        })
+        .unzip()
+}
+
+struct Outcome {
+    lost: usize,
+    longest_loss: usize,
+    dead_reckoned: usize,
+    ate_cm: f64,
+}
+
+/// Each frame's verdict, pose and checks, as text (floats exactly).
+fn run(slam: &mut Pipeline, frames: &[RgbdFrame], first: usize) -> Vec<String> {
+    frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            let r = slam.push_frame(f, (first + i) as f64).expect("accepted");
+            format!("{:?} {:?} {:?}", r.verdict, r.world_from_camera, r.checks)
+        })
+        .collect()
+}
+
+fn outcome(dead_reckoning: bool) -> Outcome {
+    let config = config(dead_reckoning);
+    let (frames, truth) = frames(&config);
+    let mut slam = Pipeline::new(config).expect("valid config");
+    let mut dead_reckoned = 0;
+    let mut verdicts = Vec::new();
+    for (i, f) in frames.iter().enumerate() {
+        let r = slam.push_frame(f, i as f64).expect("accepted");
+        assert!(r.world_from_camera.is_finite(), "frame {i}");
+        dead_reckoned += usize::from(r.checks.dead_reckoned);
+        assert!(
+            !r.checks.dead_reckoned || matches!(r.verdict, Verdict::Lost(_)),
+            "frame {i}: only lost frames are dead-reckoned"
+        );
+        verdicts.push(r.verdict);
+    }
+    let lost: Vec<bool> = verdicts
+        .iter()
+        .map(|v| matches!(v, Verdict::Lost(_)))
+        .collect();
+    let result = ate(slam.trajectory(), &truth, 0.01).expect("ATE");
+    Outcome {
+        lost: lost.iter().filter(|&&l| l).count(),
+        longest_loss: lost.split(|l| !l).map(<[bool]>::len).max().unwrap_or(0),
+        dead_reckoned,
+        ate_cm: 100.0 * result.rmse_m,
+    }
+}
+
+#[test]
+fn a_camera_swung_away_finds_the_map_again() {
+    let on = outcome(true);
+    let off = outcome(false);
+    eprintln!(
+        "dead reckoning on: {} lost (longest {}), {} dead-reckoned, ATE {:.2} cm; off: {} lost (longest {}), ATE {:.2} cm",
+        on.lost, on.longest_loss, on.dead_reckoned, on.ate_cm, off.lost, off.longest_loss, off.ate_cm
+    );
+    // Without it the second swing's loss lasts to the end.
+    assert!(
+        off.longest_loss >= 50,
+        "off: longest loss {}",
+        off.longest_loss
+    );
+    assert_eq!(off.dead_reckoned, 0);
+    assert!(on.dead_reckoned > 0);
+    assert!(on.longest_loss <= 8, "on: longest loss {}", on.longest_loss);
+    assert!(on.lost <= 15, "on: {} lost", on.lost);
+    assert!(on.ate_cm < 6.0, "on: ATE {:.2} cm", on.ate_cm);
+}
+
+#[test]
+fn a_session_saved_while_dead_reckoning_continues_exactly() {
+    let config = config(true);
+    let (frames, _) = frames(&config);
+    let mut straight = Pipeline::new(config.clone()).unwrap();
+    let straight_reports = run(&mut straight, &frames, 0);
+    let expected = Bits::of(&straight);
+    // Right after a dead-reckoned frame, with the loss going on.
+    let reckoned: Vec<bool> = straight_reports
+        .iter()
+        .map(|r| r.contains("dead_reckoned: true"))
+        .collect();
+    let k = 1 + reckoned
+        .windows(2)
+        .position(|w| w[0] && w[1])
+        .expect("two dead-reckoned frames in a row");
+    let mut first = Pipeline::new(config).unwrap();
+    run(&mut first, &frames[..k], 0);
+    let bytes = session::save(&first, Cursor::new(Vec::new()))
+        .expect("saved")
+        .into_inner();
+    let mut resumed = session::load(Cursor::new(&bytes)).expect("loads");
+    let reports = run(&mut resumed, &frames[k..], k);
+    assert_eq!(reports, straight_reports[k..], "saved after {k} frames");
+    if let Some(d) = Bits::of(&resumed).differences(&expected).into_iter().next() {
+        panic!("saved after {k} frames (mid-loss) and continued: {d}");
+    }
+}
