@@ -232,12 +232,15 @@ impl Pipeline {
     /// Processes one decoded frame stamped `timestamp` (seconds or frame
     /// number; must be finite). On error nothing changes.
     ///
-    /// A frame judged lost is not fused and its pose is held at the last good
-    /// one. While lost (and whenever the normal tracker fails) a wider
-    /// re-acquisition search runs from the last good pose against the model
-    /// seen from there, and if that fails, relocalisation from the keyframes
-    /// that look like the frame (`loop_closure::relocalise`); a re-acquired
-    /// frame is reported as [`Verdict::Recovered`] and fused. When the map is at
+    /// A frame judged lost is not fused; its pose is carried on from the
+    /// last placed frame by the sparse feature estimate when one is tight
+    /// enough (dead reckoning, `VerifyConfig::dead_reckoning`), else held
+    /// at the last placed one. While lost (and whenever the normal tracker
+    /// fails) a wider re-acquisition search runs from the last placed pose
+    /// against the model seen from there, and if that fails, relocalisation
+    /// from the keyframes that look like the frame
+    /// (`loop_closure::relocalise`); a re-acquired frame is reported as
+    /// [`Verdict::Recovered`] and fused. When the map is at
     /// `FusionConfig::max_surfels`, stale unstable surfels are evicted first,
     /// then new surfels are skipped (`FusionStats::skipped`).
     ///

@@ -49,6 +49,8 @@ export interface FrameReport {
   counts: { tracked: number; lost: number; recovered: number; held: number; lostStreak: number };
   /** Lost and then placed by relocalisation: the frame index of the keyframe it was placed by; else null. */
   relocalisedFrom: number | null;
+  /** A lost frame whose pose the sparse estimate carried on from the frame before. */
+  deadReckoned: boolean;
   /** Loop closures of the run so far (map and trajectory bent), this frame included. */
   loopClosures: number;
   /** Of loopClosures, those closed by the global check (a place seen long ago, found among the keyframes). */
@@ -237,6 +239,7 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
                 .relocalised_from
                 .map_or(JsValue::NULL, |frame| frame.into()),
         ),
+        ("deadReckoned", r.checks.dead_reckoned.into()),
         ("loopClosures", r.loop_closures.into()),
         ("globalLoopClosures", r.global_loop_closures.into()),
         ("loopClosed", r.loop_outcome.closed.into()),
