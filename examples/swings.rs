@@ -59,6 +59,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut truth = Vec::new();
     let mut verdicts = Vec::new();
     let mut off = 0;
+    // Fused frames more than 10 degrees from the true orientation.
+    let mut fused_far = 0;
     let mut last_fused: Option<(usize, glam::DAffine3)> = None;
     for i in 0..frames {
         let t = i as f64;
@@ -83,6 +85,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if dt > 0.01 || dr.to_degrees() > 1.0 {
                 off += 1;
             }
+        }
+        if placed
+            && motion_magnitude(&(true_pose.inverse() * report.world_from_camera))
+                .1
+                .to_degrees()
+                > 10.0
+        {
+            fused_far += 1;
         }
         if placed {
             last_fused = Some((i, report.world_from_camera));
@@ -112,7 +122,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let estimate = slam.trajectory();
     let result = ate(estimate, &truth, 0.01)?;
     println!(
-        "{frames} frames, swings {:.0} deg in {:.0} frames: lost {} (longest {longest}), held {}, recovered {}, tracked-but-off {off}, ATE {:.3} cm ({} poses)",
+        "{frames} frames, swings {:.0} deg in {:.0} frames: lost {} (longest {longest}), held {}, recovered {}, tracked-but-off {off}, fused >10 deg off {fused_far}, ATE {:.3} cm ({} poses)",
         path.amplitude_deg,
         path.swing_frames,
         count(|v| matches!(v, Verdict::Lost(_))),

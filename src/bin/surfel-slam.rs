@@ -100,6 +100,11 @@ pub(crate) struct TrackingArgs {
     /// Experiments: smallest noise weight of a fused measurement.
     #[arg(long, hide = true, allow_negative_numbers = true, value_parser = non_negative_f32)]
     min_noise_weight: Option<f32>,
+    /// Hold a lost camera at its last placed pose instead of carrying it on
+    /// frame to frame by the feature estimate (to see what dead reckoning
+    /// does on a sequence).
+    #[arg(long)]
+    no_dead_reckoning: bool,
     /// Simulate a sensor's noise on the (clean) input depth: kinect-v1
     /// (ICL-NUIM's recipe: jitter, disparity noise, 1/8 px steps).
     #[arg(long, value_parser = simulated_sensor_parser)]
@@ -200,6 +205,7 @@ impl TrackingArgs {
         if let Some(w) = self.min_noise_weight {
             config.fusion.min_noise_weight = w;
         }
+        config.tracker.verify.dead_reckoning = !self.no_dead_reckoning;
         config.simulate_noise = self.simulate_noise.map(|sensor| NoiseSimulation {
             sensor,
             seed: self.noise_seed,

@@ -65,6 +65,16 @@ fn pins_pose(result: &TrackResult) -> bool {
     result.conditioning >= RECOVERY_MIN_CONDITIONING && result.held_directions == 0
 }
 
+/// Whether `motion` (`previous_from_current`) is one the camera can make
+/// in `frames` frames: the tracker's per-frame bounds times the frames (at
+/// most 11: ten lost and this one), rotation at most 90 degrees.
+fn plausible_motion(normal: &TrackerConfig, frames: u32, motion: &DAffine3) -> bool {
+    let frames = f64::from(frames.clamp(1, 11));
+    let (dt, dr) = se3::motion_magnitude(motion);
+    dt <= normal.max_translation_m * frames
+        && dr.to_degrees() <= (normal.max_rotation_deg * frames).min(90.0)
+}
+
 /// Re-acquisition search: gates wide enough to pull in a pose several
 /// frames' motion away (dropped frames, a fast turn), more iterations at the
 /// coarse levels where the wide gate is cheap. Its result is then checked by
@@ -370,10 +380,11 @@ impl Judge<'_> {
         }
         let check = self.track(&wide.world_from_camera, normal, workspace);
         // The camera may have moved for every frame lost since `previous`.
-        let frames = f64::from(self.lost_streak.min(10) + 1);
-        let (dt, dr) = se3::motion_magnitude(&(self.previous.inverse() * check.world_from_camera));
-        let plausible = dt <= normal.max_translation_m * frames
-            && dr.to_degrees() <= (normal.max_rotation_deg * frames).min(90.0);
+        let plausible = plausible_motion(
+            normal,
+            self.lost_streak + 1,
+            &(self.previous.inverse() * check.world_from_camera),
+        );
         if check.lost.is_none()
             && plausible
             && pins_pose(&check)
@@ -419,10 +430,9 @@ impl Pipeline {
         let Some((pose, inliers)) = tracked.checks.sparse else {
             return;
         };
-        let normal = &self.config.tracker;
-        let (dt, dr) = se3::motion_magnitude(&(placed.inverse() * pose));
-        let plausible =
-            dt <= normal.max_translation_m && dr.to_degrees() <= normal.max_rotation_deg;
+        // The camera may have moved for every frame since the placed one.
+        let frames = self.frame_index.saturating_sub(self.placed_frame);
+        let plausible = plausible_motion(&self.config.tracker, frames, &(placed.inverse() * pose));
         if !(pose.is_finite()
             && plausible
             && inliers >= verify.dead_reckoning_min_inliers
