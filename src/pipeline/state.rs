@@ -182,7 +182,9 @@ impl Pipeline {
         p.frame_index = s.frames;
         p.counts = s.counts;
         p.last_good = s.last_good;
-        let last_fused = s.frames.saturating_sub(1 + s.counts.lost_streak);
+        let last_fused = s
+            .frames
+            .saturating_sub(s.counts.lost_streak.saturating_add(1));
         p.placed_frame = s.placed_frame.unwrap_or(last_fused);
         if p.placed_frame < last_fused || (s.frames > 0 && p.placed_frame >= s.frames) {
             return Err(bad(format!(
@@ -227,7 +229,8 @@ impl Pipeline {
         // streak, whose warm-up count did not include it yet) or
         // dead-reckoned during the streak.
         let index = self.placed_frame;
-        let was_fused = index + 1 + self.counts.lost_streak == self.frame_index;
+        let was_fused = u64::from(index) + 1 + u64::from(self.counts.lost_streak)
+            == u64::from(self.frame_index);
         let fused = self.counts.fused().saturating_sub(u32::from(was_fused));
         let mut tiles = DepthTiles::default();
         tiles.build(&last.vertices, k.width);
