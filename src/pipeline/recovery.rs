@@ -382,7 +382,7 @@ impl Judge<'_> {
         // The camera may have moved for every frame lost since `previous`.
         let plausible = plausible_motion(
             normal,
-            self.lost_streak + 1,
+            self.lost_streak.saturating_add(1),
             &(self.previous.inverse() * check.world_from_camera),
         );
         if check.lost.is_none()
@@ -406,7 +406,8 @@ impl Pipeline {
     /// A lost frame carried on from the last placed one by the sparse
     /// estimate ([`crate::track::verify::VerifyConfig::dead_reckoning`]):
     /// with enough tight inlier matches and a motion the tracker allows in
-    /// one frame, the frame is placed at the estimate (still lost, not
+    /// the frames since the placed one, the frame is placed at the
+    /// estimate (still lost, not
     /// fused), and the next frame is tracked from it, against the model
     /// seen from it. Other frames pass unchanged.
     pub(super) fn dead_reckon(&mut self, tracked: &mut Tracked) {
