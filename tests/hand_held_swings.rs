@@ -6,7 +6,8 @@
 //! moves on. Dead reckoning (each lost frame carried on from the one before
 //! by the sparse estimate) brings the camera back where the model is
 //! found again; without it the loss never ends (`examples/swings.rs`).
-//! A session saved during a dead-reckoned loss continues exactly. On real
+//! A session saved during a dead-reckoned loss continues exactly, and a
+//! reset then replays the whole run. On real
 //! data: the 7-Scenes kitchen (real Kinect v1, hand-held) at every 8th
 //! frame, where the motion between frames outruns tracking at times.
 
@@ -132,7 +133,7 @@ fn a_camera_swung_away_finds_the_map_again() {
 }
 
 #[test]
-fn a_session_saved_while_dead_reckoning_continues_exactly() {
+fn a_session_saved_while_dead_reckoning_continues_exactly_and_a_reset_replays_it() {
     let config = config(true);
     let (frames, _) = frames(&config);
     let mut straight = Pipeline::new(config.clone()).unwrap();
@@ -157,6 +158,16 @@ fn a_session_saved_while_dead_reckoning_continues_exactly() {
     assert_eq!(reports, straight_reports[k..], "saved after {k} frames");
     if let Some(d) = Bits::of(&resumed).differences(&expected).into_iter().next() {
         panic!("saved after {k} frames (mid-loss) and continued: {d}");
+    }
+    // Reset mid-loss, then the whole sequence again: the same run.
+    resumed.reset();
+    assert_eq!(
+        run(&mut resumed, &frames, 0),
+        straight_reports,
+        "replayed after a reset"
+    );
+    if let Some(d) = Bits::of(&resumed).differences(&expected).into_iter().next() {
+        panic!("replayed after a reset: {d}");
     }
 }
 
