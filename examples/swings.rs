@@ -7,9 +7,13 @@
 //! degree, and ATE.
 //!
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
-//! [--swing-frames N] [--noisy] [--exposure F] [--preset NAME] [--verbose
+//! [--swing-frames N] [--noisy] [--depth-only] [--no-dead-reckoning]
+//! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--verbose
 //! [--from FRAME]]` (`--verbose`: one line per frame for 50 frames from
 //! `--from`, default 30: verdict, the true turn, the pose's error).
+//! `--depth-only` pushes a constant grey colour image and tracks with ICP,
+//! as a Stray Scanner scan without `rgb/` runs natively: no photometric
+//! term, no feature estimate, so no dead reckoning.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use surfel_slam::eval::ate;
@@ -53,6 +57,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         config.tracker.verify.dead_reckoning_min_inliers,
     );
     config.tracker.verify.dead_reckoning = !args.iter().any(|a| a == "--no-dead-reckoning");
+    let depth_only = args.iter().any(|a| a == "--depth-only");
+    if depth_only {
+        config.tracker.mode = surfel_slam::track::TrackerMode::Icp;
+    }
     let scene = Scene::room();
     let mut slam = Pipeline::new(config.clone())?;
     let origin = path.pose(0.0).inverse();
@@ -71,7 +79,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &NoiseModel::none(),
             i as u64,
         );
-        let report = slam.push_frame(&rendered.to_frame(&config.depth)?, t)?;
+        let mut frame = rendered.to_frame(&config.depth)?;
+        if depth_only {
+            frame.rgb.fill(surfel_slam::dataset::DEPTH_ONLY_GREY);
+        }
+        let report = slam.push_frame(&frame, t)?;
         let true_pose = origin * path.pose(t);
         truth.push((t, true_pose));
         let placed = matches!(

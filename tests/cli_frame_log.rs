@@ -147,3 +147,56 @@ fn the_frame_log_has_a_row_per_input_frame_and_judges_each_against_the_truth() {
         assert!(cm < 1.0, "frame {}: {cm} cm", row["frame"]);
     }
 }
+
+#[test]
+fn depth_only_leaves_the_colour_unread_and_tracks_on_geometry() {
+    let Some(icl) = common::shared_dataset("icl_office_kt0") else {
+        return;
+    };
+    let scratch = common::scratch("frame-log-depth-only");
+    let dataset = scratch.0.join("icl");
+    copy_icl(&icl, &dataset, 16, 5);
+    let run_with = |extra: &[&str], log: &Path| {
+        let out = Command::new(env!("CARGO_BIN_EXE_surfel-slam"))
+            .args(["run", "-q", "--frame-log"])
+            .arg(log)
+            .args(extra)
+            .arg(&dataset)
+            .output()
+            .expect("runs");
+        assert_eq!(out.status.code(), Some(3), "frame 5 is unreadable");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let (colour_log, depth_log) = (scratch.0.join("colour.csv"), scratch.0.join("depth.csv"));
+    let colour_err = run_with(&[], &colour_log);
+    let depth_err = run_with(&["--depth-only"], &depth_log);
+    assert_eq!(
+        colour_err.matches("no colour images").count(),
+        0,
+        "{colour_err}"
+    );
+    assert_eq!(
+        depth_err.matches("no colour images").count(),
+        1,
+        "{depth_err}"
+    );
+    assert!(
+        depth_err.contains("icp, not --tracker joint"),
+        "{depth_err}"
+    );
+    let (colour, depth) = (rows(&colour_log), rows(&depth_log));
+    assert_eq!(depth.len(), 16);
+    // ICL-NUIM's joint tracker against ICP alone: other poses, each motion
+    // still right to a millimetre on clean rendered depth.
+    let poses = |rows: &[std::collections::HashMap<String, String>]| -> Vec<String> {
+        rows.iter()
+            .map(|r| format!("{} {}", r["tx"], r["qw"]))
+            .collect()
+    };
+    assert_ne!(poses(&colour), poses(&depth));
+    for row in depth.iter().filter(|r| !r["rpe_cm"].is_empty()) {
+        assert_eq!(row["verdict"], "tracked", "frame {}", row["frame"]);
+        let cm: f64 = row["rpe_cm"].parse().expect("rpe_cm");
+        assert!(cm < 0.1, "frame {}: {cm} cm", row["frame"]);
+    }
+}

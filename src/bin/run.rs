@@ -73,6 +73,11 @@ pub struct RunArgs {
         value_parser = clap::value_parser!(u32).range(1..)
     )]
     stride: u32,
+    /// Leave the colour images unread: track on depth alone (ICP), the map
+    /// grey, as a sequence without colour runs (a Stray Scanner scan whose
+    /// video cannot be decoded here); to see what colour is worth.
+    #[arg(long)]
+    depth_only: bool,
     #[command(flatten)]
     camera: CameraOverrides,
     #[command(flatten)]
@@ -151,9 +156,14 @@ pub fn run(args: &RunArgs, given: &[String]) -> Result<u8> {
 fn open_sequence(args: &RunArgs) -> Result<(DatasetSource, Sequence)> {
     let mut source = DatasetSource::open(&args.dataset)
         .with_context(|| format!("opening {}", args.dataset.display()))?;
-    let sequence = source
+    let mut sequence = source
         .sequence()
         .with_context(|| format!("opening {}", args.dataset.display()))?;
+    if args.depth_only {
+        for frame in &mut sequence.frames {
+            frame.colour = None;
+        }
+    }
     for warning in &sequence.warnings {
         eprintln!("warning: {warning}");
     }

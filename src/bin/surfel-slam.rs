@@ -494,7 +494,7 @@ pub(crate) fn config_for(
         };
         config.tracker.mode = TrackerMode::Icp;
         eprintln!(
-            "note: this {} sequence has no colour images: tracking on depth alone (icp{instead}), \
+            "note: no colour images are read for this {} sequence: tracking on depth alone (icp{instead}), \
              the map coloured grey",
             sequence.kind.name()
         );
