@@ -2,8 +2,7 @@
 //! an older stable surfel (within [`COINCIDE_ALONG_M`] of its plane and
 //! within its disk, at most [`COINCIDE_ACROSS_M`] from its centre across
 //! its normal; normals within the fusion's normal gate) is merged into the
-//! older one, which takes the later `last_seen`. Fusion associates a
-//! measurement only with the active
+//! older one, which takes the later `last_seen`. Fusion associates a measurement only with the active
 //! surfels whose centre lands on its pixel, so a return to a place whose
 //! surfels went inactive (or whose centres now fall between pixels) lays a
 //! second copy beside the first (`docs/performance.md#revisit-growth`).
