@@ -1,8 +1,7 @@
 //! Surfaces mapped twice: a surfel that became stable recently and lies on
-//! an older stable surfel (within [`COINCIDE_ALONG_M`] of its plane and
-//! within its disk, at most [`COINCIDE_ACROSS_M`] from its centre across
-//! its normal; normals within the fusion's normal gate) is merged into the
-//! older one, which takes the later `last_seen`. Fusion associates a measurement only with the active
+//! an older stable surfel (within [`COINCIDE_M`], normals within the
+//! fusion's normal gate) is merged into the older one, which takes the
+//! later `last_seen`. Fusion associates a measurement only with the active
 //! surfels whose centre lands on its pixel, so a return to a place whose
 //! surfels went inactive (or whose centres now fall between pixels) lays a
 //! second copy beside the first (`docs/performance.md#revisit-growth`).
@@ -14,33 +13,14 @@ use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 use std::ops::Range;
 
-/// Largest offset of a copy from the old surfel along the old surfel's
-/// normal, metres: the two lie on one surface.
-pub const COINCIDE_ALONG_M: f32 = 0.01;
-
-/// Largest offset of a copy from the old surfel's centre across its normal,
-/// metres; within the old surfel's radius too, so the copy lies on its
-/// disk. A return to a place lays its copies between the old centres, not
-/// on them: on the synthetic room circled ten times (`examples/ten_circles.rs`)
-/// most copies of circle 2 lie 1-1.5 cm from the nearest old centre, 1 cm
-/// or less off its plane and within its radius
-/// (`docs/performance.md#revisit-growth`).
-pub const COINCIDE_ACROSS_M: f32 = 0.02;
-
-/// Whether a copy `offset` (copy minus old, metres) from an old surfel with
-/// unit normal `normal` and radius `radius` lies on the old surfel's disk.
-fn on_disk(offset: Vec3, normal: Vec3, radius: f32) -> bool {
-    let along = offset.dot(normal);
-    let across = (offset - normal * along).length();
-    along.abs() < COINCIDE_ALONG_M && across < radius.min(COINCIDE_ACROSS_M)
-}
+/// Largest distance between two surfels taken for one surface, metres.
+pub const COINCIDE_M: f32 = 0.01;
 
 /// Merges the copies due at frame `now` (see
 /// [`FusionConfig::merge_copies_after_frames`]): every stable surfel
 /// created in the cleanup span that ends `merge_copies_after_frames` before
-/// `now` is merged into the nearest older, inactive, stable surfel on whose
-/// disk it lies ([`COINCIDE_ALONG_M`], [`COINCIDE_ACROSS_M`]) with a normal
-/// within the fusion's gate, which takes its
+/// `now` is merged into the nearest older, inactive, stable surfel within
+/// [`COINCIDE_M`] with a normal within the fusion's gate, which takes its
 /// `last_seen`. Returns how many were merged (marked absorbed, removed at
 /// the next cleanup).
 pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usize {
@@ -59,12 +39,8 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
     // allocation that would raise the wasm memory's high-water mark.
     let n = map.common_len();
     let (positions, normals) = (map.positions(), map.normals());
-    let (first_seen, last_seen, confidences, radii) = (
-        map.first_seen(),
-        map.last_seen(),
-        map.confidences(),
-        map.radii(),
-    );
+    let (first_seen, last_seen, confidences) =
+        (map.first_seen(), map.last_seen(), map.confidences());
     if !(0..n).any(|b| last_seen[b] < active_from && confidences[b] >= stable) {
         return 0;
     }
@@ -75,9 +51,7 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
     if young.is_empty() {
         return 0;
     }
-    // Grid cells as wide as the farthest pair: the 27 around a cell hold them all.
-    let reach = COINCIDE_ACROSS_M.max(COINCIDE_ALONG_M);
-    let cell = |p: Vec3| (p / reach).floor().as_ivec3();
+    let cell = |p: Vec3| (p / COINCIDE_M).floor().as_ivec3();
     // The young surfels sorted by cell, and each cell's run of them.
     let mut by_cell: Vec<([i32; 3], u32)> = young
         .iter()
@@ -100,8 +74,8 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
         lo = lo.min(p);
         hi = hi.max(p);
     }
-    lo -= Vec3::splat(reach);
-    hi += Vec3::splat(reach);
+    lo -= Vec3::splat(COINCIDE_M);
+    hi += Vec3::splat(COINCIDE_M);
     let cos_gate = libm::cosf(config.normal_gate_deg.to_radians());
     // (young, old, distance) for every coinciding pair, found from the old side.
     let mut pairs: Vec<(u32, u32, f32)> = (0..n)
@@ -125,11 +99,8 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
                             continue;
                         };
                         for &(_, j) in &by_cell[js.clone()] {
-                            let offset = positions[j as usize] - p;
-                            if on_disk(offset, normals[b], radii[b])
-                                && normals[j as usize].dot(normals[b]) >= cos_gate
-                            {
-                                let d = offset.length();
+                            let d = positions[j as usize].distance(p);
+                            if d < COINCIDE_M && normals[j as usize].dot(normals[b]) >= cos_gate {
                                 found.push((j, b as u32, d));
                             }
                         }
@@ -252,13 +223,8 @@ mod tests {
     /// An old surfel (frame 0, so inactive at [`due`]) and a copy made at
     /// frame 300, `offset` beside it with normal `copy_normal`.
     fn old_and_copy(offset: Vec3, copy_normal: Vec3) -> SurfelMap {
-        old_of_radius_and_copy(0.005, offset, copy_normal)
-    }
-
-    /// [`old_and_copy`] with the old surfel's radius `radius`, metres.
-    fn old_of_radius_and_copy(radius: f32, offset: Vec3, copy_normal: Vec3) -> SurfelMap {
         let mut map = SurfelMap::default();
-        map.push(Vec3::new(0.0, 0.0, 2.0), Vec3::Z, [0; 4], radius, 20.0, 0);
+        map.push(Vec3::new(0.0, 0.0, 2.0), Vec3::Z, [0; 4], 0.005, 20.0, 0);
         map.push(
             Vec3::new(0.0, 0.0, 2.0) + offset,
             copy_normal,
@@ -280,24 +246,6 @@ mod tests {
         assert_eq!(map.last_seen()[0], 300, "the old surfel is active again");
         // Its geometry stays where it was.
         assert_eq!(map.positions()[0], Vec3::new(0.0, 0.0, 2.0));
-    }
-
-    #[test]
-    fn a_copy_on_the_old_disk_is_merged_one_off_its_plane_or_disk_is_not() {
-        let config = FusionConfig::default();
-        let now = due(&config);
-        // An old surfel of radius 1.8 cm; copies 1.5 cm from its centre.
-        let with_radius = |offset: Vec3| old_of_radius_and_copy(0.018, offset, Vec3::Z);
-        let mut beside = with_radius(Vec3::new(0.012, 0.009, 0.002));
-        assert_eq!(merge_copies(&mut beside, &config, now), 1, "on the disk");
-        let mut above = with_radius(Vec3::new(0.009, 0.0, 0.012));
-        assert_eq!(merge_copies(&mut above, &config, now), 0, "off the plane");
-        let mut beyond = with_radius(Vec3::new(0.019, 0.0, 0.0));
-        assert_eq!(
-            merge_copies(&mut beyond, &config, now),
-            0,
-            "beyond the radius"
-        );
     }
 
     #[test]
@@ -326,14 +274,13 @@ mod tests {
     fn a_copy_across_the_filters_coarse_cells_is_still_found() {
         let config = FusionConfig::default();
         let now = due(&config);
-        // 8 cm coarse cells (4 grid cells of COINCIDE_ACROSS_M): the old
-        // surfel and its copy lie on either side of a coarse boundary on
-        // every axis.
+        // 4 cm coarse cells: the old surfel and its copy lie on either side
+        // of a coarse boundary on every axis.
         let mut map = SurfelMap::default();
-        let old = Vec3::new(0.0795, -0.0005, 1.9995);
+        let old = Vec3::new(0.0395, -0.0005, 1.9995);
         map.push(old, Vec3::Z, [0; 4], 0.005, 20.0, 0);
         map.push(
-            Vec3::new(0.0802, 0.0003, 2.0003),
+            Vec3::new(0.0402, 0.0003, 2.0003),
             Vec3::Z,
             [0; 4],
             0.005,
