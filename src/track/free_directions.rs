@@ -247,6 +247,87 @@ impl FreeDirections {
         self
     }
 
+    /// The motions `system` pins poorly: the eigenvectors `v` of its
+    /// unit-diagonal scaling (as [`NormalEquations::conditioning`] takes
+    /// it) whose eigenvalue is below `ratio` times the largest, as the
+    /// covectors `D v` (`D` the scaling) that hold exactly that motion.
+    /// A diagonal below a millionth of the largest is scaled as that, so a
+    /// motion with no information at all is not scaled up into one.
+    /// Used where the frame's own measure of free directions missed a
+    /// slide the final system shows.
+    #[must_use]
+    pub fn weak_in(system: &NormalEquations, ratio: f64) -> Self {
+        let m = system.full_matrix();
+        let largest_diagonal = (0..6).map(|i| m[i][i]).fold(0.0, f64::max);
+        let floor = (1e-6 * largest_diagonal).max(1e-300);
+        let d: [f64; 6] = std::array::from_fn(|i| m[i][i].max(floor).sqrt());
+        let scaled = nalgebra::Matrix6::from_fn(|r, c| m[r][c] / (d[r] * d[c]));
+        let eigen = nalgebra::SymmetricEigen::new(scaled);
+        let largest = eigen.eigenvalues.max();
+        let mut weak = Self::default();
+        if !(largest > 0.0 && largest.is_finite()) {
+            return weak;
+        }
+        for (i, &value) in eigen.eigenvalues.iter().enumerate() {
+            if value < ratio * largest {
+                let v = eigen.eigenvectors.column(i);
+                weak.directions[weak.count] = std::array::from_fn(|r| d[r] * v[r]);
+                weak.count += 1;
+            }
+        }
+        weak.orthonormalise();
+        weak
+    }
+
+    /// These directions and `other`'s, at most six.
+    #[must_use]
+    pub fn with(&self, other: &Self) -> Self {
+        let mut all = *self;
+        for u in &other.directions[..other.count] {
+            if all.count < 6 {
+                all.directions[all.count] = *u;
+                all.count += 1;
+            }
+        }
+        all.orthonormalise();
+        all
+    }
+
+    /// Length of `twist`'s part along the held directions (metres, with
+    /// rotations in radians at 1 m, as the directions are measured).
+    #[must_use]
+    pub fn length_along(&self, twist: &[f64; 6]) -> f64 {
+        self.directions[..self.count]
+            .iter()
+            .map(|u| {
+                let along: f64 = u.iter().zip(twist).map(|(a, b)| a * b).sum();
+                along * along
+            })
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Gram-Schmidt over the held covectors; a dependent one is dropped.
+    fn orthonormalise(&mut self) {
+        let mut kept = 0;
+        for i in 0..self.count {
+            let mut u = self.directions[i];
+            for k in 0..kept {
+                let b: [f64; 6] = self.directions[k];
+                let along: f64 = u.iter().zip(&b).map(|(x, y)| x * y).sum();
+                for (x, y) in u.iter_mut().zip(&b) {
+                    *x -= along * y;
+                }
+            }
+            let norm = u.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if norm > 1e-9 {
+                self.directions[kept] = u.map(|x| x / norm);
+                kept += 1;
+            }
+        }
+        self.count = kept;
+    }
+
     /// Number of held directions (0..=6).
     #[must_use]
     pub fn count(&self) -> usize {
@@ -556,6 +637,45 @@ mod tests {
     const WALL: (Vec3, f32) = (Vec3::Z, 2.0);
     const FLOOR: (Vec3, f32) = (Vec3::Y, 0.5);
     const SIDE_WALL: (Vec3, f32) = (Vec3::X, 0.6);
+
+    /// The point-to-plane system, rows `[q x n, n]`, of every pixel of a
+    /// view of `planes`.
+    fn system(planes: &[(Vec3, f32)]) -> NormalEquations {
+        let (level, model) = view(planes, |_, _| true);
+        let mut system = NormalEquations::default();
+        for (q, n) in level.vertices.iter().zip(&model.normals) {
+            if q.z > 0.0 && q.is_finite() && *n != Vec3::ZERO {
+                let c = q.cross(*n);
+                system.add(&[c.x, c.y, c.z, n.x, n.y, n.z], 0.0, 1.0);
+            }
+        }
+        system
+    }
+
+    #[test]
+    fn the_final_system_shows_the_slide_along_a_join_as_weak() {
+        let weak = FreeDirections::weak_in(&system(&[WALL, FLOOR]), 2e-3);
+        assert_eq!(weak.count(), 1);
+        let slide = weak.length_along(&[0.0, 0.0, 0.0, 0.05, 0.0, 0.0]);
+        assert!((slide - 0.05).abs() < 0.005, "{slide}");
+        let into_the_wall = weak.length_along(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.05]);
+        assert!(into_the_wall < 0.005, "{into_the_wall}");
+        let pinned = FreeDirections::weak_in(&system(&[WALL, FLOOR, SIDE_WALL]), 2e-3);
+        assert_eq!(pinned.count(), 0);
+        assert_eq!(pinned.length_along(&[0.1; 6]), 0.0);
+    }
+
+    #[test]
+    fn directions_combined_twice_count_once() {
+        let wall = FreeDirections::weak_in(&system(&[WALL]), 2e-3);
+        assert_eq!(wall.count(), 3);
+        let join = FreeDirections::weak_in(&system(&[WALL, FLOOR]), 2e-3);
+        // The join's slide is one of the wall's three.
+        assert_eq!(wall.with(&join).count(), 3);
+        assert_eq!(join.with(&FreeDirections::default()).count(), 1);
+        let empty = NormalEquations::default();
+        assert_eq!(FreeDirections::weak_in(&empty, 2e-3).count(), 0);
+    }
 
     #[test]
     fn a_wall_leaves_three_directions_free() {

@@ -253,9 +253,19 @@ pub struct TrackResult {
     /// The directions held (camera-frame twist covectors), for another
     /// attempt on the same frame ([`track_holding`]).
     pub free: FreeDirections,
+    /// Directions the final system pins poorly (below
+    /// [`WEAK_CONDITIONING`] of its strongest, held ones excluded): where a
+    /// result slid if it moved, with nothing else to check it.
+    pub weak: FreeDirections,
     /// `None` when tracked, otherwise why it was lost.
     pub lost: Option<LostReason>,
 }
+
+/// Eigenvalue ratio of the scaled final system below which a direction
+/// counts as pinned poorly ([`TrackResult::weak`]). Every tracked frame of
+/// TUM fr3/teddy reads >= 0.0079; a synthetic view of a wall and the floor
+/// that slid 22 cm on re-acquisition, 0.0005.
+pub const WEAK_CONDITIONING: f64 = 2e-3;
 
 /// Step between the model pixels used as ICP sources at `level` in iteration
 /// `iteration` of `iterations`, for a model with `valid` pixels: 1 for the
@@ -548,6 +558,12 @@ fn track_result(
         conditioning,
         held_directions: problem.free.count(),
         free: problem.free,
+        weak: match config.mode {
+            TrackerMode::Icp if inliers >= 6 => {
+                FreeDirections::weak_in(&problem.free.pinned(sys, 1.0), WEAK_CONDITIONING)
+            }
+            _ => FreeDirections::default(),
+        },
         lost: None,
     };
     result.lost = verdict(&result, initial_world_from_camera, config);
