@@ -290,6 +290,25 @@ impl Judge<'_> {
         })
     }
 
+    /// Left the guess along the directions `result`'s final system pins
+    /// poorly by more than [`SLIDE_OVER_MISS`] times the prior's largest
+    /// recent miss along them (with at least [`MIN_PRIOR_HISTORY`] misses).
+    fn slid(&self, result: &TrackResult) -> bool {
+        let weak = &result.weak;
+        if weak.count() == 0 || self.prior_misses.len() < MIN_PRIOR_HISTORY {
+            return false;
+        }
+        let slid = weak.length_along(&se3::log(
+            &(self.guess.inverse() * result.world_from_camera),
+        ));
+        let missed = self
+            .prior_misses
+            .iter()
+            .map(|miss| weak.length_along(miss))
+            .fold(0.0, f64::max);
+        slid > SLIDE_OVER_MISS * missed
+    }
+
     /// A lost frame: the pose held at `previous`, `result`'s statistics.
     fn lost(&self, result: TrackResult, checks: TrackingChecks) -> Tracked {
         let reason = result.lost.unwrap_or(LostReason::IllConditioned);
@@ -406,23 +425,10 @@ impl Judge<'_> {
         workspace: &mut TrackerWorkspace,
     ) -> Tracked {
         checks.free_space_final = checks.free_space_first;
-        let weak = &first.result.weak;
-        let slid = weak.length_along(&se3::log(
-            &(self.guess.inverse() * first.result.world_from_camera),
-        ));
-        let missed = self
-            .prior_misses
-            .iter()
-            .map(|miss| weak.length_along(miss))
-            .reduce(f64::max);
-        let weak = match missed {
-            Some(missed)
-                if self.prior_misses.len() >= MIN_PRIOR_HISTORY
-                    && slid > SLIDE_OVER_MISS * missed =>
-            {
-                *weak
-            }
-            _ => FreeDirections::default(),
+        let weak = if self.slid(&first.result) {
+            first.result.weak
+        } else {
+            FreeDirections::default()
         };
         if weak.count() == 0 {
             // The first attempt already held what the frame leaves free.
