@@ -258,6 +258,9 @@ impl FreeDirections {
     #[must_use]
     pub fn weak_in(system: &NormalEquations, ratio: f64) -> Self {
         let m = system.full_matrix();
+        if !m.iter().flatten().all(|v| v.is_finite()) {
+            return Self::default();
+        }
         let largest_diagonal = (0..6).map(|i| m[i][i]).fold(0.0, f64::max);
         let floor = (1e-6 * largest_diagonal).max(1e-300);
         let d: [f64; 6] = std::array::from_fn(|i| m[i][i].max(floor).sqrt());
@@ -675,6 +678,9 @@ mod tests {
         assert_eq!(join.with(&FreeDirections::default()).count(), 1);
         let empty = NormalEquations::default();
         assert_eq!(FreeDirections::weak_in(&empty, 2e-3).count(), 0);
+        let mut broken = system(&[WALL, FLOOR]);
+        broken.a[0][3] = f64::NAN;
+        assert_eq!(FreeDirections::weak_in(&broken, 2e-3).count(), 0);
     }
 
     #[test]
