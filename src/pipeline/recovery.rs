@@ -75,7 +75,7 @@ fn plausible_motion(normal: &TrackerConfig, frames: u32, motion: &DAffine3) -> b
         && dr.to_degrees() <= (normal.max_rotation_deg * frames).min(90.0)
 }
 
-/// Frames back over which [`recent_prior_misses`] looks.
+/// Misses of the prior (frames back) a slide is judged against.
 const PRIOR_HISTORY: usize = 10;
 
 /// Misses of the prior needed before a slide is judged against them.
@@ -87,22 +87,17 @@ const MIN_PRIOR_HISTORY: usize = 3;
 /// 30-degree swing slides again.
 const SLIDE_OVER_MISS: f64 = 2.0;
 
-/// The misses of the constant-velocity prior over the last
-/// [`PRIOR_HISTORY`] frames of `poses` (`world_from_camera` as tracked):
-/// for three poses in a row, the third against the second moved on by the
-/// motion from the first, as a twist (rotation first, radians; then
-/// metres). How well the prior predicts at this sequence's frame rate and
-/// motion, direction by direction.
-fn recent_prior_misses(poses: &[(f64, DAffine3)]) -> Vec<se3::Twist> {
-    let recent = &poses[poses.len().saturating_sub(PRIOR_HISTORY + 2)..];
-    recent
-        .windows(3)
-        .map(|w| {
-            let (a, b, c) = (w[0].1, w[1].1, w[2].1);
-            let guess = b * (a.inverse() * b);
-            se3::log(&(guess.inverse() * c))
-        })
-        .collect()
+/// The misses of the constant-velocity prior along `poses`
+/// (`world_from_camera` as tracked): for three poses in a row, the third
+/// against the second moved on by the motion from the first, as a twist
+/// (rotation first, radians; then metres). How well the prior predicts at
+/// this sequence's frame rate and motion, direction by direction.
+fn prior_misses(poses: &[(f64, DAffine3)]) -> impl Iterator<Item = se3::Twist> + '_ {
+    poses.windows(3).map(|w| {
+        let (a, b, c) = (w[0].1, w[1].1, w[2].1);
+        let guess = b * (a.inverse() * b);
+        se3::log(&(guess.inverse() * c))
+    })
 }
 
 /// Re-acquisition search: gates wide enough to pull in a pose several
@@ -173,7 +168,10 @@ impl Pipeline {
             previous: *previous,
             guess,
             lost_streak,
-            prior_misses: recent_prior_misses(&self.online_trajectory),
+            recent_poses: {
+                let poses = &self.online_trajectory;
+                &poses[poses.len().saturating_sub(PRIOR_HISTORY + 2)..]
+            },
         };
         let workspace = &mut self.tracker;
         let mut checks = TrackingChecks::default();
@@ -221,8 +219,8 @@ struct Judge<'a> {
     guess: DAffine3,
     /// Frames lost in a row before this one.
     lost_streak: u32,
-    /// How the constant-velocity prior missed lately ([`recent_prior_misses`]).
-    prior_misses: Vec<se3::Twist>,
+    /// The last poses as tracked, whose [`prior_misses`] scale a slide.
+    recent_poses: &'a [(f64, DAffine3)],
 }
 
 /// The first dense attempt, from the guess.
@@ -295,16 +293,15 @@ impl Judge<'_> {
     /// recent miss along them (with at least [`MIN_PRIOR_HISTORY`] misses).
     fn slid(&self, result: &TrackResult) -> bool {
         let weak = &result.weak;
-        if weak.count() == 0 || self.prior_misses.len() < MIN_PRIOR_HISTORY {
+        // Three poses make one miss.
+        if weak.count() == 0 || self.recent_poses.len() < MIN_PRIOR_HISTORY + 2 {
             return false;
         }
         let slid = weak.length_along(&se3::log(
             &(self.guess.inverse() * result.world_from_camera),
         ));
-        let missed = self
-            .prior_misses
-            .iter()
-            .map(|miss| weak.length_along(miss))
+        let missed = prior_misses(self.recent_poses)
+            .map(|miss| weak.length_along(&miss))
             .fold(0.0, f64::max);
         slid > SLIDE_OVER_MISS * missed
     }
