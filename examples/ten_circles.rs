@@ -87,7 +87,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     |p: &glam::DAffine3| 100.0 * (p.translation - true_pose.translation).length();
                 let what = match &outcome.global {
                     Some(g) if g.closed => format!(
-                        "global, keyframe {}, correction {:.2} cm {:.2} deg",
+                        "global{}, keyframe {}, correction {:.2} cm {:.2} deg",
+                        if g.pose_only { " (pose only)" } else { "" },
                         g.keyframe_frame,
                         100.0 * g.correction_m,
                         g.correction_deg

@@ -21,7 +21,9 @@ use crate::track::{TrackerConfig, TrackerWorkspace};
 use glam::{DAffine3, Vec3};
 
 use super::deformation::{Constraint, DeformError, DeformReport, DeformationGraph};
-use super::global::{constraints_into, find_global_match, GlobalClosure, GlobalMatch, GlobalMiss};
+use super::global::{
+    constraints_into, find_global_match, undoes_slide, GlobalClosure, GlobalMatch, GlobalMiss,
+};
 use super::local::{ModelRegistration, Registration};
 use super::relocalise::{Model, PlaceAttempt, Relocaliser, Trackers};
 use super::LoopClosureConfig;
@@ -354,20 +356,37 @@ impl LoopCloser {
             }
         };
         let view = look.relocaliser.keyframe_view();
+        let registered = found.registration.world_from_camera;
+        let slid = (1..=config.slide_frames as usize).any(|frames| {
+            constant_velocity_guess(trajectory, frames).is_some_and(|guess| {
+                undoes_slide(&found.tracked, &registered, &guess, config.slide_fraction)
+            })
+        });
+        if slid {
+            // The map did not drift: only this frame is put back.
+            *pose = registered;
+            self.graph = None;
+            outcome.closed = true;
+            outcome.global = Some(GlobalClosure::of(&found, (true, true)));
+            self.closures += 1;
+            self.global_closures += 1;
+            self.last_global = Some(now);
+            return;
+        }
         let inactive_before = frame.fusion.active_at(now).start;
         self.collect_global(map, &found, view, look.pyramid, (now, inactive_before));
         match self.bend(map, trajectory, pose, now) {
             Ok(report) => {
                 outcome.closed = true;
                 outcome.deform = Some(report);
-                outcome.global = Some(GlobalClosure::of(&found, true));
+                outcome.global = Some(GlobalClosure::of(&found, (true, false)));
                 self.closures += 1;
                 self.global_closures += 1;
                 self.last_global = Some(now);
             }
             Err(e) => {
                 outcome.deform_error = Some(e);
-                outcome.global = Some(GlobalClosure::of(&found, false));
+                outcome.global = Some(GlobalClosure::of(&found, (false, false)));
                 return;
             }
         }
@@ -544,6 +563,18 @@ impl LoopCloser {
     }
 }
 
+/// Where constant velocity puts the frame after `trajectory`'s last entry
+/// when carried on from `frames` entries back (`world_from_camera`): the
+/// motion into the entry `frames` back, repeated `frames` times. `None`
+/// without `frames + 1` entries.
+fn constant_velocity_guess(trajectory: &[(f64, DAffine3)], frames: usize) -> Option<DAffine3> {
+    let start = trajectory.len().checked_sub(frames + 1)?;
+    let (_, before) = trajectory.get(start)?;
+    let (_, base) = trajectory.get(start + 1)?;
+    let step = before.inverse() * *base;
+    Some((0..frames).fold(*base, |pose, _| pose * step))
+}
+
 /// The attempt that passed the most checks (a refusal later in the order,
 /// or none); the most similar keyframe among equals.
 fn furthest(attempts: &[PlaceAttempt]) -> Option<PlaceAttempt> {
@@ -555,4 +586,28 @@ fn furthest(attempts: &[PlaceAttempt]) -> Option<PlaceAttempt> {
             best
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    fn at(x: f64) -> (f64, DAffine3) {
+        (x, DAffine3::from_translation(DVec3::new(x, 0.0, 0.0)))
+    }
+
+    #[test]
+    fn the_guess_carries_an_earlier_motion_on_to_the_next_frame() {
+        let x = |g: Option<DAffine3>| g.map(|g| g.translation.x);
+        assert!(constant_velocity_guess(&[], 1).is_none());
+        assert!(constant_velocity_guess(&[at(0.0)], 1).is_none());
+        // 0, 1, 2 then a slide to 5: from one frame back, 5 + 3 = 8; from
+        // two or three frames back, 4; from four, too few entries.
+        let path = [at(0.0), at(1.0), at(2.0), at(5.0)];
+        assert_eq!(x(constant_velocity_guess(&path, 1)), Some(8.0));
+        assert_eq!(x(constant_velocity_guess(&path, 2)), Some(4.0));
+        assert_eq!(x(constant_velocity_guess(&path, 3)), Some(4.0));
+        assert!(constant_velocity_guess(&path, 4).is_none());
+    }
 }

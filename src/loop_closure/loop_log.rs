@@ -66,9 +66,10 @@ impl LoopOutcome {
             });
             parts.push(match (&self.global, self.global_miss) {
                 (Some(g), _) if g.closed => format!(
-                    "global closure {:.1} cm {:.1} deg{keyframe}",
+                    "global closure {:.1} cm {:.1} deg{keyframe}{}",
                     g.correction_m * 100.0,
-                    g.correction_deg
+                    g.correction_deg,
+                    if g.pose_only { ", pose only" } else { "" }
                 ),
                 (Some(_), _) => match &self.deform_error {
                     Some(e) => format!("global match{keyframe}, deformation refused: {e}"),
@@ -89,10 +90,12 @@ impl LoopOutcome {
     }
 
     /// The short name of the decision for the CSV: `closed-local`,
-    /// `closed-global`, `aligned`, `deform-refused`, `refused`.
+    /// `closed-global`, `placed-global` (the pose alone moved),
+    /// `aligned`, `deform-refused`, `refused`.
     #[must_use]
     pub fn decision_name(&self) -> &'static str {
         match (self.closed, self.global.is_some(), self.aligned) {
+            (true, true, _) if self.global.is_some_and(|g| g.pose_only) => "placed-global",
             (true, true, _) => "closed-global",
             (true, false, _) => "closed-local",
             (false, _, true) => "aligned",
