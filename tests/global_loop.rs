@@ -434,3 +434,65 @@ fn the_slide_of_the_noisy_loop_is_closed_globally() {
         "{closed_map:?} vs {open_map:?}"
     );
 }
+
+/// The synthetic room circled `circles` times at 500 frames a circle,
+/// rendered at 640x480 with the Kinect-v1 recipe (seed 1), tracked and
+/// fused at half size with the ICL-NUIM preset, as
+/// `examples/ten_circles.rs` runs it; loop closure on or off.
+fn noisy_circles(circles: usize, loop_closure: bool) -> Run {
+    use surfel_slam::simulated_noise::{NoiseSimulation, SimulatedSensor};
+    let k = synthetic::default_intrinsics();
+    let mut config = SlamConfig::from_preset(surfel_slam::CameraPreset::IclNuim);
+    config.intrinsics = k;
+    config.half_resolution = true;
+    config.depth = synthetic::depth_settings();
+    config.simulate_noise = Some(NoiseSimulation {
+        sensor: SimulatedSensor::KinectV1,
+        seed: 1,
+    });
+    config.loop_closure.enabled = loop_closure;
+    let scene = Scene::room();
+    let mut slam = Pipeline::new(config.clone()).expect("pipeline");
+    let origin = loop_pose(0, 500).inverse();
+    let (mut reports, mut truth) = (Vec::new(), Vec::new());
+    for i in 0..circles * 500 {
+        let pose = loop_pose(i, 500);
+        let frame = synthetic::render(&scene, &k, &pose, &NoiseModel::none(), i as u64)
+            .to_frame(&config.depth)
+            .expect("frame");
+        reports.push(slam.push_frame(&frame, i as f64).expect("push"));
+        truth.push(Some(origin * pose));
+    }
+    Run {
+        slam,
+        reports,
+        truth,
+    }
+}
+
+/// Issue #50 (loop closure judged on exact truth), a measurement of about
+/// ten minutes: `cargo test --release --test global_loop -- --ignored
+/// --nocapture six_noisy_circles`. Tracking slides 4-5 cm on single frames
+/// where a circle starts (the frames before within 0.2 cm of the truth);
+/// the global check puts those frames back on the old map. Each match must
+/// move the pose toward the truth, and the run must end nearer the truth
+/// than without loop closure: bending the map for a slide (the map had not
+/// drifted) once gave 1.36 cm against 0.40 cm without.
+#[test]
+#[ignore = "a measurement: 6000 frames rendered and tracked"]
+fn six_noisy_circles_end_nearer_the_truth_with_loop_closure() {
+    let (open, closed) = (noisy_circles(6, false), noisy_circles(6, true));
+    println!(
+        "six noisy circles: ATE {:.3} cm without loop closure, {:.3} cm with ({} global closures, {} pose only); \
+         {} -> {} surfels",
+        open.ate_m() * 100.0,
+        closed.ate_m() * 100.0,
+        closed.global().count(),
+        closed.global().filter(|(_, g)| g.pose_only).count(),
+        open.slam.map().len(),
+        closed.slam.map().len()
+    );
+    closed.assert_global_matches_right();
+    assert!(closed.global().count() >= 1, "no global closure");
+    assert!(closed.ate_m() < open.ate_m());
+}
