@@ -10,7 +10,10 @@
 //! keyframe). An accepted registration gives the correction from the
 //! drifted world to the old one and surface constraints for the
 //! deformation graph: points of the frame where the tracked pose puts them
-//! and where the registered pose puts them.
+//! and where the registered pose puts them. A registration that puts the
+//! frame back where constant velocity from the last few frames leads
+//! ([`undoes_slide`]) corrects a slide of the tracking, not drift of the
+//! map: the closer then moves the pose alone.
 //!
 //! Poses are `world_from_camera` (metres); times are frame indices.
 

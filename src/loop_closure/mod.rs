@@ -10,7 +10,8 @@
 //!   frame is registered against the old map as a keyframe older than the
 //!   active window saw it (relocalisation's checks, a bounded correction, a
 //!   cooldown after a closure); a match bends the map like a local closure,
-//!   the old part pinned.
+//!   the old part pinned, unless it only undoes the last frames' slide off
+//!   the motion prior: then the pose alone is moved.
 //! - `deformation`: an embedded deformation graph that bends every surfel and
 //!   every past pose to satisfy the constraints an accepted closure gives.
 //!
