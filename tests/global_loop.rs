@@ -365,22 +365,22 @@ fn frames_of_other_places_spliced_in_close_no_global_loop() {
 /// on main: the tracker slides on the planar walls from frame ~62 and
 /// ends about 38 cm off, every frame reported tracked).
 fn noisy_loop(global: bool) -> Run {
-    let config = loop_config(global);
-    let frames = 290;
+    loop_run(&loop_config(global), 290, 240, &NoiseModel::kinect())
+}
+
+/// `frames` frames of the synthetic room's loop at `per_loop` frames a
+/// turn, rendered with `config`'s intrinsics and `noise`, pushed into a
+/// new pipeline with `config`; truth in the first camera's frame.
+fn loop_run(config: &SlamConfig, frames: usize, per_loop: usize, noise: &NoiseModel) -> Run {
     let mut slam = Pipeline::new(config.clone()).expect("config");
-    let origin_inv = loop_pose(0, 240).inverse();
+    let scene = Scene::room();
+    let origin_inv = loop_pose(0, per_loop).inverse();
     let (mut reports, mut truth) = (Vec::new(), Vec::new());
     for i in 0..frames {
-        let pose = loop_pose(i, 240);
-        let frame = synthetic::render(
-            &Scene::room(),
-            &config.intrinsics,
-            &pose,
-            &NoiseModel::kinect(),
-            i as u64,
-        )
-        .to_frame(&config.depth)
-        .expect("frame");
+        let pose = loop_pose(i, per_loop);
+        let frame = synthetic::render(&scene, &config.intrinsics, &pose, noise, i as u64)
+            .to_frame(&config.depth)
+            .expect("frame");
         reports.push(slam.push_frame(&frame, i as f64).expect("push"));
         truth.push(Some(origin_inv * pose));
     }
@@ -451,27 +451,11 @@ fn noisy_circles(circles: usize, loop_closure: bool) -> Run {
         seed: 1,
     });
     config.loop_closure.enabled = loop_closure;
-    let scene = Scene::room();
-    let mut slam = Pipeline::new(config.clone()).expect("pipeline");
-    let origin = loop_pose(0, 500).inverse();
-    let (mut reports, mut truth) = (Vec::new(), Vec::new());
-    for i in 0..circles * 500 {
-        let pose = loop_pose(i, 500);
-        let frame = synthetic::render(&scene, &k, &pose, &NoiseModel::none(), i as u64)
-            .to_frame(&config.depth)
-            .expect("frame");
-        reports.push(slam.push_frame(&frame, i as f64).expect("push"));
-        truth.push(Some(origin * pose));
-    }
-    Run {
-        slam,
-        reports,
-        truth,
-    }
+    loop_run(&config, circles * 500, 500, &NoiseModel::none())
 }
 
 /// Issue #50 (loop closure judged on exact truth), a measurement of about
-/// ten minutes: `cargo test --release --test global_loop -- --ignored
+/// four minutes: `cargo test --release --test global_loop -- --ignored
 /// --nocapture six_noisy_circles`. Tracking slides 4-5 cm on single frames
 /// where a circle starts (the frames before within 0.2 cm of the truth);
 /// the global check puts those frames back on the old map. Each match must
