@@ -22,6 +22,7 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Largest offset of a copy from the old surfel along the old surfel's
 /// normal, metres: the two lie on one surface.
@@ -58,33 +59,18 @@ pub const COINCIDE_M: f32 = 0.01;
 /// (ATE 0.97 -> 2.07 cm).
 pub const COPIES_DRIFT_M: f32 = 0.005;
 
-/// A young surfel and an old one within reach of it, normals within the
-/// fusion's gate.
-#[derive(Debug, Clone, Copy)]
-struct Near {
-    copy: u32,
-    old: u32,
-    /// Between the centres, metres.
-    distance: f32,
-    /// The copy lies on the old surfel's disk ([`on_disk`]).
-    on_disk: bool,
-}
-
 /// The translation (world frame, metres) that best explains how far each
-/// copy lies off its nearest old surfel's plane (`near` sorted by copy,
-/// then distance: the first pair of each copy is its nearest), by least
-/// squares over the offsets along the old normals. Directions the normals
-/// do not span are damped to zero (a wall alone says nothing of a slide
-/// along it).
-fn copies_offset(near: &[Near], positions: &[Vec3], normals: &[Vec3]) -> DVec3 {
+/// copy lies off its nearest old surfel's plane, by least squares over the
+/// offsets along the old normals; `pairs` gives each copy (by index) with
+/// its nearest old surfel. Directions the normals do not span are damped to
+/// zero (a wall alone says nothing of a slide along it).
+fn copies_offset(
+    pairs: impl Iterator<Item = (usize, usize)>,
+    positions: &[Vec3],
+    normals: &[Vec3],
+) -> DVec3 {
     let (mut a, mut rhs) = (DMat3::ZERO, DVec3::ZERO);
-    let mut last = None;
-    for pair in near {
-        if last == Some(pair.copy) {
-            continue;
-        }
-        last = Some(pair.copy);
-        let (j, b) = (pair.copy as usize, pair.old as usize);
+    for (j, b) in pairs {
         let n = normals[b].as_dvec3();
         let along = (positions[j] - positions[b]).as_dvec3().dot(n);
         a += DMat3::from_cols(n * n.x, n * n.y, n * n.z);
@@ -95,6 +81,23 @@ fn copies_offset(near: &[Near], positions: &[Vec3], normals: &[Vec3]) -> DVec3 {
         return DVec3::ZERO;
     }
     (a + DMat3::from_diagonal(DVec3::splat(damping))).inverse() * rhs
+}
+
+/// A pair's key for an atomic minimum: the distance's bits (metres, not
+/// negative, so they order as the distances do) above the old surfel's
+/// index, which breaks ties whatever order the search found them in.
+fn pair_key(distance: f32, old: usize) -> u64 {
+    (u64::from(distance.to_bits()) << 32) | old as u64
+}
+
+/// The distance (metres) and old surfel of a [`pair_key`]; `None` for none.
+fn from_key(key: u64) -> Option<(f32, usize)> {
+    (key != u64::MAX).then(|| {
+        (
+            f32::from_bits((key >> 32) as u32),
+            (key & 0xFFFF_FFFF) as usize,
+        )
+    })
 }
 
 /// Merges the copies due at frame `now` (see
@@ -142,7 +145,8 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
     // The young surfels sorted by cell, and each cell's run of them.
     let mut by_cell: Vec<([i32; 3], u32)> = young
         .iter()
-        .map(|&j| (cell(positions[j as usize]).to_array(), j))
+        .enumerate()
+        .map(|(y, &j)| (cell(positions[j as usize]).to_array(), y as u32))
         .collect();
     by_cell.sort_unstable();
     let mut grid: HashMap<IVec3, Range<usize>, BuildHasherDefault<CellHasher>> =
@@ -164,9 +168,12 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
     lo -= Vec3::splat(reach);
     hi += Vec3::splat(reach);
     let cos_gate = libm::cosf(config.normal_gate_deg.to_radians());
-    // (young, old, distance, on the old disk) for every pair within reach
-    // with normals within the gate, found from the old side.
-    let mut near: Vec<Near> = (0..n)
+    // Per copy (index into `young`), the nearest old surfel within reach
+    // and the nearest on whose disk it lies, normals within the gate, found
+    // from the old side as `pair_key`s.
+    let nearest: Vec<AtomicU64> = young.iter().map(|_| AtomicU64::new(u64::MAX)).collect();
+    let nearest_on_disk: Vec<AtomicU64> = young.iter().map(|_| AtomicU64::new(u64::MAX)).collect();
+    (0..n)
         .into_par_iter()
         .filter(|&b| {
             first_seen[b] < young_from
@@ -176,56 +183,46 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
                 && positions[b].cmple(hi).all()
                 && near_young.may_hold(cell(positions[b]))
         })
-        .flat_map_iter(|b| {
+        .for_each(|b| {
             let p = positions[b];
             let c = cell(p);
-            let mut found = Vec::new();
-            for dz in -1..=1 {
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        let Some(js) = grid.get(&c.saturating_add(IVec3::new(dx, dy, dz))) else {
-                            continue;
-                        };
-                        for &(_, j) in &by_cell[js.clone()] {
-                            let offset = positions[j as usize] - p;
-                            let d = offset.length();
-                            if d < reach && normals[j as usize].dot(normals[b]) >= cos_gate {
-                                found.push(Near {
-                                    copy: j,
-                                    old: b as u32,
-                                    distance: d,
-                                    on_disk: on_disk(offset, normals[b], radii[b]),
-                                });
-                            }
+            for d in (0..27).map(|i| IVec3::new(i % 3 - 1, i / 3 % 3 - 1, i / 9 - 1)) {
+                let Some(ys) = grid.get(&c.saturating_add(d)) else {
+                    continue;
+                };
+                for &(_, y) in &by_cell[ys.clone()] {
+                    let j = young[y as usize] as usize;
+                    let offset = positions[j] - p;
+                    let distance = offset.length();
+                    if distance < reach && normals[j].dot(normals[b]) >= cos_gate {
+                        let key = pair_key(distance, b);
+                        nearest[y as usize].fetch_min(key, Ordering::Relaxed);
+                        if on_disk(offset, normals[b], radii[b]) {
+                            nearest_on_disk[y as usize].fetch_min(key, Ordering::Relaxed);
                         }
                     }
                 }
             }
-            found
-        })
-        .collect();
-    // The old surfel's index breaks ties of distance: the pair kept never
-    // depends on the order the search found them in.
-    near.sort_unstable_by(|a, b| {
-        (a.copy.cmp(&b.copy))
-            .then(a.distance.total_cmp(&b.distance))
-            .then(a.old.cmp(&b.old))
-    });
+        });
+    let nearest_of = |y: usize, keys: &[AtomicU64]| from_key(keys[y].load(Ordering::Relaxed));
     // Copies offset as a whole are a drift the loop checks have yet to
     // close: only those on the old centres go, the rest stay for the checks
     // to register (the drifting synthetic loop, `tests/loop_closure.rs`).
-    let drifted = copies_offset(&near, positions, normals).length() > f64::from(COPIES_DRIFT_M);
-    near.retain(|p| {
-        if drifted {
-            p.distance < COINCIDE_M
-        } else {
-            p.on_disk
-        }
-    });
-    near.dedup_by_key(|p| p.copy);
+    let pairs = (0..young.len())
+        .filter_map(|y| nearest_of(y, &nearest).map(|(_, b)| (young[y] as usize, b)));
+    let drifted = copies_offset(pairs, positions, normals).length() > f64::from(COPIES_DRIFT_M);
+    let chosen: Vec<(usize, usize)> = (0..young.len())
+        .filter_map(|y| {
+            let old = if drifted {
+                nearest_of(y, &nearest).filter(|&(d, _)| d < COINCIDE_M)
+            } else {
+                nearest_of(y, &nearest_on_disk)
+            };
+            old.map(|(_, b)| (young[y] as usize, b))
+        })
+        .collect();
     let mut merged = 0;
-    for pair in near {
-        let (j, b) = (pair.copy as usize, pair.old as usize);
+    for (j, b) in chosen {
         if map.confidences()[b] < 0.0 || map.confidences()[j] < 0.0 {
             continue;
         }
@@ -446,22 +443,19 @@ mod tests {
         let (map, made_from) = floor_and_wall_with_copies(shift, |_| 0.0);
         let (positions, normals) = (map.positions(), map.normals());
         // Each copy with the old surfel it was made from.
-        let near: Vec<Near> = made_from
+        let pairs = made_from
             .iter()
-            .map(|&(copy, old)| Near {
-                copy,
-                old,
-                distance: positions[copy as usize].distance(positions[old as usize]),
-                on_disk: true,
-            })
-            .collect();
-        let offset = copies_offset(&near, positions, normals);
+            .map(|&(copy, old)| (copy as usize, old as usize));
+        let offset = copies_offset(pairs, positions, normals);
         // x and z are measured (damped by 1/(1 + 0.05 * 2/3 * 2)); y, along
         // both planes, is not seen at all.
         assert!((offset.x - 0.006 / 1.0333).abs() < 1e-4, "{offset}");
         assert!((offset.z - 0.006 / 1.0333).abs() < 1e-4, "{offset}");
         assert!(offset.y.abs() < 1e-9, "{offset}");
-        assert_eq!(copies_offset(&[], positions, normals), DVec3::ZERO);
+        assert_eq!(
+            copies_offset(std::iter::empty(), positions, normals),
+            DVec3::ZERO
+        );
     }
 
     #[test]
