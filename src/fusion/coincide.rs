@@ -438,6 +438,25 @@ mod tests {
     }
 
     #[test]
+    fn the_same_copies_merge_into_the_same_old_surfels_on_any_thread_count() {
+        let config = FusionConfig::default();
+        let now = due(&config);
+        // Each copy lies as far from four old centres: the ties decide.
+        let on_threads = |threads: usize| {
+            let (mut map, _) = floor_and_wall_with_copies(Vec3::ZERO, |_| 0.0);
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let merged = pool.install(|| merge_copies(&mut map, &config, now));
+            (merged, map.last_seen().to_vec(), map.confidences().to_vec())
+        };
+        let one = on_threads(1);
+        assert_eq!(one.0, 128);
+        assert_eq!(on_threads(4), one);
+    }
+
+    #[test]
     fn the_copies_offset_is_measured_along_the_normals_they_span() {
         let shift = Vec3::new(0.006, 0.004, 0.006);
         let (map, made_from) = floor_and_wall_with_copies(shift, |_| 0.0);
