@@ -106,9 +106,9 @@ fn stages(c: &mut Criterion) {
 
     // Built here because criterion skips the closures of filtered-out benchmarks.
     let mut pyramid = FramePyramid::new(&k, &f.config.preprocess);
-    pyramid.build(&f.next, &f.config.preprocess);
+    pyramid.build(&f.next, &f.config.preprocess, &f.config.tracker.noise);
     c.bench_function("preprocess (bilateral, pyramid, vertices, normals)", |b| {
-        b.iter(|| pyramid.build(&f.next, &f.config.preprocess));
+        b.iter(|| pyramid.build(&f.next, &f.config.preprocess, &f.config.tracker.noise));
     });
     let unfiltered = surfel_slam::preprocess::PreprocessConfig {
         bilateral: false,
@@ -116,7 +116,7 @@ fn stages(c: &mut Criterion) {
     };
     let mut plain = FramePyramid::new(&k, &unfiltered);
     c.bench_function("preprocess without bilateral", |b| {
-        b.iter(|| plain.build(&f.next, &unfiltered));
+        b.iter(|| plain.build(&f.next, &unfiltered, &f.config.tracker.noise));
     });
     let level0 = &pyramid.levels[0];
     let mut normals = vec![glam::Vec3::ZERO; k.pixel_count()];
@@ -133,7 +133,7 @@ fn stages(c: &mut Criterion) {
     let (c_last, d_last) = &f.bytes[MAP_FRAMES - 1];
     let last = RgbdFrame::from_png_bytes(c_last, d_last, &f.config.depth).expect("decodable frame");
     let mut last_pyramid = FramePyramid::new(&k, &f.config.preprocess);
-    last_pyramid.build(&last, &f.config.preprocess);
+    last_pyramid.build(&last, &f.config.preprocess, &f.config.tracker.noise);
     let mut tiles = DepthTiles::default();
     tiles.build(&last_pyramid.levels[0].vertices, k.width);
     let measured = Measured {

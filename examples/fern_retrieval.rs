@@ -571,7 +571,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut frames = Vec::new();
     let mut block = (1, 1);
     for frame in &raw {
-        pyramid.build(frame, &config.preprocess);
+        pyramid.build(frame, &config.preprocess, &config.tracker.noise);
         let level = &pyramid.levels[0];
         library.encode(&pyramid.rgb, &level.depth, k.width, k.height)?;
         let small = library.current();

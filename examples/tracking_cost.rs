@@ -40,6 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     pyramid.build(
         &read_frame(&dir, newest, &config.depth)?,
         &config.preprocess,
+        &config.tracker.noise,
     );
     let mut tiles = DepthTiles::default();
     tiles.build(&pyramid.levels[0].vertices, k.width);
@@ -50,7 +51,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     prediction.render(map, &pose, &k, band, measured, 0..u32::MAX, |i| {
         config.fusion.predicts(map, i, frames as u32)
     });
-    pyramid.build(&read_frame(&dir, last, &config.depth)?, &config.preprocess);
+    pyramid.build(
+        &read_frame(&dir, last, &config.depth)?,
+        &config.preprocess,
+        &config.tracker.noise,
+    );
     let t = RigidF32::from_affine(&pose.inverse());
     let mut rgb = RgbWorkspace::default();
     let photometric = &config.tracker.photometric;

@@ -220,6 +220,19 @@ impl SensorNoise {
         self.base_m + self.quadratic_per_m * d * d
     }
 
+    /// Depth (m) from which the axial deviation facing the surface reaches
+    /// `sigma_m` and grows beyond it (on the far side of `offset_m`): the
+    /// offset itself when the constant part alone reaches it; `None` when
+    /// the deviation does not grow with depth.
+    #[must_use]
+    pub fn depth_where_axial_reaches(&self, sigma_m: f32) -> Option<f32> {
+        if self.quadratic_per_m.is_nan() || self.quadratic_per_m <= 0.0 {
+            return None;
+        }
+        let excess = (sigma_m - self.base_m).max(0.0);
+        Some(self.offset_m + (excess / self.quadratic_per_m).sqrt())
+    }
+
     /// The unit of the weights: the axial deviation at 1 m facing the surface, metres.
     #[inline]
     #[must_use]
@@ -340,6 +353,32 @@ impl Default for SensorNoise {
 #[cfg(test)]
 #[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
+    #[test]
+    fn the_depth_where_the_axial_deviation_reaches_a_value() {
+        use super::SensorNoise;
+        let at = |m: SensorNoise, sigma| m.depth_where_axial_reaches(sigma).expect("grows");
+        // 0.005 + 1.425e-3 z^2 = 0.012 at z = 2.216 m; 0.0012 + 0.0019 (z - 0.4)^2 at 2.784 m.
+        assert!((at(SensorNoise::simulated_kinect(), 0.012) - 2.2164).abs() < 1e-3);
+        assert!((at(SensorNoise::kinect_v1(), 0.012) - 2.7841).abs() < 1e-3);
+        for (model, sigma) in [
+            (SensorNoise::kinect_v1(), 0.012),
+            (SensorNoise::active_stereo(), 0.02),
+        ] {
+            let z = at(model, sigma);
+            assert!((model.axial_m(z) - sigma).abs() < 1e-6, "{z}");
+        }
+        // The constant part alone reaches it: from the offset.
+        assert_eq!(at(SensorNoise::kinect_v1(), 0.001), 0.4);
+        assert_eq!(
+            SensorNoise::uniform().depth_where_axial_reaches(0.012),
+            None
+        );
+        assert_eq!(
+            SensorNoise::rendered().depth_where_axial_reaches(0.012),
+            None
+        );
+    }
+
     #[test]
     fn rendered_depth_is_clean_and_noisy_depth_is_not() {
         let (w, h) = (160, 120);

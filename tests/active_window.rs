@@ -250,7 +250,7 @@ fn the_active_and_the_inactive_model_render_separately_from_one_pose() {
     .to_frame(&config.depth)
     .expect("frame");
     let mut pyramid = FramePyramid::new(&k, &config.preprocess);
-    pyramid.build(&frame, &config.preprocess);
+    pyramid.build(&frame, &config.preprocess, &config.tracker.noise);
     let vertices = &pyramid.levels[0].vertices;
     let mut tiles = surfel_slam::fusion::DepthTiles::default();
     tiles.build(vertices, k.width);

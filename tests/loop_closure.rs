@@ -60,7 +60,7 @@ fn view_points(k: &Intrinsics, pose: &DAffine3) -> (Vec<glam::Vec3>, Vec<glam::V
         .to_frame(&config.depth)
         .expect("frame");
     let mut pyramid = FramePyramid::new(k, &config.preprocess);
-    pyramid.build(&frame, &config.preprocess);
+    pyramid.build(&frame, &config.preprocess, &config.tracker.noise);
     let level = &pyramid.levels[0];
     (level.vertices.clone(), level.normals.clone())
 }

@@ -125,7 +125,8 @@ impl Mapped {
     /// Builds the pyramid of the view from `pose` and encodes it.
     fn show(&mut self, pose: &DAffine3, seed: u64) {
         let frame = self.frame(pose, seed);
-        self.pyramid.build(&frame, &self.config.preprocess);
+        self.pyramid
+            .build(&frame, &self.config.preprocess, &self.config.tracker.noise);
         self.relocaliser.encode(&self.pyramid).expect("encode");
     }
 
@@ -404,9 +405,11 @@ fn a_drifted_return_to_an_old_place_gives_the_correction_and_a_foreign_one_none(
     }
     // The same drift at a frame of noise spliced in: nothing.
     let noise_frame = garbage(&small(), 3);
-    mapped
-        .pyramid
-        .build(&noise_frame, &mapped.config.preprocess);
+    mapped.pyramid.build(
+        &noise_frame,
+        &mapped.config.preprocess,
+        &mapped.config.tracker.noise,
+    );
     let _ = mapped.relocaliser.encode(&mapped.pyramid);
     let map = mapped.slam.map();
     let stable = mapped.config.fusion.stable_confidence;
@@ -474,7 +477,7 @@ fn teddy_frames_are_relocalised_near_the_truth_or_not_at_all() {
     // Keyframes from the first 120 frames; the map from all of them.
     for (i, (entry, frame)) in sequence.frames.iter().zip(&frames).enumerate() {
         let report = slam.push_frame(frame, entry.timestamp).expect("push");
-        pyramid.build(frame, &config.preprocess);
+        pyramid.build(frame, &config.preprocess, &config.tracker.noise);
         relocaliser.encode(&pyramid).expect("encode");
         if report.verdict.is_fused() && i < 120 {
             relocaliser.remember(&report.world_from_camera, i as u32);
@@ -486,7 +489,7 @@ fn teddy_frames_are_relocalised_near_the_truth_or_not_at_all() {
     let mut workspace = TrackerWorkspace::default();
     let (mut placed, mut mapped_places) = (0, 0);
     for (i, (entry, frame)) in sequence.frames.iter().zip(&frames).enumerate().step_by(6) {
-        pyramid.build(frame, &config.preprocess);
+        pyramid.build(frame, &config.preprocess, &config.tracker.noise);
         relocaliser.encode(&pyramid).expect("encode");
         let map = slam.map();
         let stable = config.fusion.stable_confidence;

@@ -69,7 +69,7 @@ fn fusing_a_static_noisy_view_converges_to_the_surface() {
         if i == 0 {
             let raw = surfel_slam::preprocess::FramePyramid::new(&k, &config.preprocess);
             let mut raw = raw;
-            raw.build(&f, &config.preprocess);
+            raw.build(&f, &config.preprocess, &config.tracker.noise);
             single_frame_rms = surface_error(
                 &mut raw.levels[0]
                     .vertices

@@ -349,7 +349,8 @@ impl Pipeline {
         } else {
             frame
         };
-        self.pyramid.build(frame, &self.config.preprocess);
+        self.pyramid
+            .build(frame, &self.config.preprocess, &self.config.tracker.noise);
     }
 
     /// Stage `track`: the pose of the pyramid's frame against the model
