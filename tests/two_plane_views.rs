@@ -25,6 +25,12 @@ use surfel_slam::{Pipeline, SlamConfig, Verdict};
 const FIRST: usize = 290;
 const COUNT: usize = 80;
 
+/// Frames of the far view across the office (3-5 m), where the camera's
+/// turn doubles at frames 92-93: with a constant bilateral range sigma the
+/// Kinect-v1 terraces there posed as information and those frames slid
+/// 2-2.7 cm along the x / yaw slide on every seed.
+const FAR: std::ops::Range<usize> = 60..130;
+
 struct Run {
     ate_cm: f64,
     /// Frames called tracked whose motion since the last fused frame is
@@ -34,10 +40,19 @@ struct Run {
 }
 
 fn run(sequence: &Sequence, dir: &std::path::Path, config: SlamConfig) -> Run {
+    run_frames(sequence, dir, config, FIRST..FIRST + COUNT)
+}
+
+fn run_frames(
+    sequence: &Sequence,
+    dir: &std::path::Path,
+    config: SlamConfig,
+    frames: std::ops::Range<usize>,
+) -> Run {
     let mut slam = Pipeline::new(config.clone()).expect("valid config");
     let mut last_fused: Option<(DAffine3, DAffine3)> = None;
     let (mut dishonest, mut held) = (Vec::new(), 0);
-    for entry in sequence.frames.iter().skip(FIRST).take(COUNT) {
+    for entry in sequence.frames.iter().skip(frames.start).take(frames.len()) {
         let frame = read_frame(dir, entry, &config.depth).expect("frame decodes");
         let report = slam
             .push_frame(&frame, entry.timestamp)
@@ -113,7 +128,9 @@ fn the_ceiling_meeting_a_wall_holds_clean_and_with_kinect_noise() {
         icp.dishonest,
         noisy.dishonest
     );
-    // Measured 0.0165 cm joint, 0.92 cm ICP (20 frames held), 1.48 cm with noise.
+    // Measured 0.0166 cm joint, 1.09 cm ICP (21 held), 0.317 cm with noise
+    // (1.48 cm with a constant bilateral range sigma; frames 316-317 off
+    // by 2.2-2.4 cm on this fresh map, none in the whole sequence's run).
     assert!(clean.ate_cm <= 0.05, "clean ATE {:.4} cm", clean.ate_cm);
     assert!(clean.dishonest.is_empty(), "{:?}", clean.dishonest);
     assert!(
@@ -122,5 +139,35 @@ fn the_ceiling_meeting_a_wall_holds_clean_and_with_kinect_noise() {
         icp.ate_cm,
         clean.ate_cm
     );
-    assert!(noisy.ate_cm <= 1.6, "noisy ATE {:.3} cm", noisy.ate_cm);
+    assert!(noisy.ate_cm <= 0.6, "noisy ATE {:.3} cm", noisy.ate_cm);
+}
+
+#[test]
+fn far_views_with_kinect_noise_are_tracked_honestly_when_the_filter_follows_the_noise() {
+    let Some(dir) = common::shared_dataset("icl_office_kt0_long") else {
+        return;
+    };
+    let sequence = Sequence::open(&dir).expect("sequence opens");
+    let noisy = SlamConfig {
+        simulate_noise: Some(NoiseSimulation {
+            sensor: SimulatedSensor::KinectV1,
+            seed: 1,
+        }),
+        ..SlamConfig::from_preset(sequence.preset)
+    };
+    let mut constant = noisy.clone();
+    constant.preprocess.range_noise_factor = 0.0;
+    let following = run_frames(&sequence, &dir, noisy, FAR);
+    let constant = run_frames(&sequence, &dir, constant, FAR);
+    eprintln!(
+        "frames {FAR:?} with noise: range sigma following the noise {:.3} cm, constant {:.3} cm; \
+         tracked but off: {:?} / {:?}",
+        following.ate_cm, constant.ate_cm, following.dishonest, constant.dishonest
+    );
+    assert!(following.dishonest.is_empty(), "{:?}", following.dishonest);
+    assert!(
+        !constant.dishonest.is_empty(),
+        "a constant range sigma tracks these frames honestly too: the test no longer shows the filter"
+    );
+    assert!(following.ate_cm <= 0.5, "ATE {:.3} cm", following.ate_cm);
 }
