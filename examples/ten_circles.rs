@@ -11,7 +11,7 @@
 //! from the truth before and after it.
 //!
 //! `cargo run --release --example ten_circles [-- --circles N]
-//! [--frames-per-circle N] [--clean]`
+//! [--frames-per-circle N] [--clean] [--range-noise-factor F]`
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use surfel_slam::eval::ate;
@@ -57,6 +57,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             sensor: SimulatedSensor::KinectV1,
             seed: 1,
         });
+    }
+    if let Some(factor) = args
+        .iter()
+        .position(|a| a == "--range-noise-factor")
+        .and_then(|i| args.get(i + 1))
+    {
+        config.preprocess.range_noise_factor = factor.parse()?;
     }
     let scene = Scene::room();
     let mut slam = Pipeline::new(config.clone())?;
