@@ -271,10 +271,12 @@ pub fn range_knee_m(config: &PreprocessConfig, noise: &SensorNoise) -> Option<f3
 /// 0 (no depth) stays 0.
 #[inline]
 fn to_range_domain(z: f32, knee: f32) -> f32 {
+    // Both sides computed and one selected, so that the loop vectorises.
+    let far = 2.0 * knee - knee * knee / z.max(knee);
     if z <= knee {
         z
     } else {
-        2.0 * knee - knee * knee / z
+        far
     }
 }
 
@@ -282,10 +284,11 @@ fn to_range_domain(z: f32, knee: f32) -> f32 {
 /// `2 knee`; the guard keeps a rounding there finite).
 #[inline]
 fn from_range_domain(g: f32, knee: f32) -> f32 {
+    let far = knee * knee / (2.0 * knee - g).max(knee * 1e-4);
     if g <= knee {
         g
     } else {
-        knee * knee / (2.0 * knee - g).max(knee * 1e-4)
+        far
     }
 }
 
