@@ -39,11 +39,11 @@ pub struct PreprocessConfig {
     /// tracked frames off the truth's motion by more than 1 cm or 1 degree
     /// (`--frame-log`), by factor: 0 (constant): 0.539 / 0.547 / 0.653 cm,
     /// 4 / 6 / 7 off, 3 / 2 / 3 lost; 2: 0.296 / 0.368 / 0.406 cm,
-    /// 1 / 0 / 1 off, none lost; 2.5: 0.396 / 0.400 / 0.425 cm, none off,
+    /// 1 / 0 / 1 off, none lost; 2.5: 0.386 / 0.378 / 0.372 cm, none off,
     /// none lost; 3: 0.664 / 0.734 / 0.722, 1 off each. The 7-Scenes
-    /// kitchen (Kinect v1, knee 2.78 m) 2.582 -> 2.571 cm. Sensors whose
+    /// kitchen (Kinect v1, knee 2.78 m) 2.582 -> 2.573 cm. Sensors whose
     /// model has no quadratic term (TUM's uniform, clean renderings) are
-    /// unchanged.
+    /// unchanged (`docs/design.md`, "Defaults per preset").
     #[serde(default = "default_range_noise_factor")]
     pub range_noise_factor: f32,
     /// Bilateral window radius, pixels (6 gives the published 13x13 window).
