@@ -13,13 +13,11 @@
 
 mod common;
 
-use glam::DAffine3;
-use surfel_slam::dataset::{read_frame, Sequence};
-use surfel_slam::eval::ate;
-use surfel_slam::se3::motion_magnitude;
+use common::truth_run::{run_frames, TruthRun};
+use surfel_slam::dataset::Sequence;
 use surfel_slam::simulated_noise::{NoiseSimulation, SimulatedSensor};
 use surfel_slam::track::TrackerMode;
-use surfel_slam::{Pipeline, SlamConfig, Verdict};
+use surfel_slam::SlamConfig;
 
 /// The frames of the ceiling-and-wall stretch.
 const FIRST: usize = 290;
@@ -31,57 +29,8 @@ const COUNT: usize = 80;
 /// 2-2.7 cm along the x / yaw slide on every seed.
 const FAR: std::ops::Range<usize> = 60..130;
 
-struct Run {
-    ate_cm: f64,
-    /// Frames called tracked whose motion since the last fused frame is
-    /// off the truth's by more than 1 cm or 1 degree.
-    dishonest: Vec<(usize, f64, f64)>,
-    held: usize,
-}
-
-fn run(sequence: &Sequence, dir: &std::path::Path, config: SlamConfig) -> Run {
+fn run(sequence: &Sequence, dir: &std::path::Path, config: SlamConfig) -> TruthRun {
     run_frames(sequence, dir, config, FIRST..FIRST + COUNT)
-}
-
-fn run_frames(
-    sequence: &Sequence,
-    dir: &std::path::Path,
-    config: SlamConfig,
-    frames: std::ops::Range<usize>,
-) -> Run {
-    let mut slam = Pipeline::new(config.clone()).expect("valid config");
-    let mut last_fused: Option<(DAffine3, DAffine3)> = None;
-    let (mut dishonest, mut held) = (Vec::new(), 0);
-    for entry in sequence.frames.iter().skip(frames.start).take(frames.len()) {
-        let frame = read_frame(dir, entry, &config.depth).expect("frame decodes");
-        let report = slam
-            .push_frame(&frame, entry.timestamp)
-            .expect("frame accepted");
-        let truth = sequence
-            .ground_truth_for(entry.timestamp, 0.02)
-            .expect("exact truth for every frame");
-        let pose = report.world_from_camera;
-        if let (Verdict::Tracked, Some((before, truth_before))) = (report.verdict, last_fused) {
-            let error = (truth_before.inverse() * truth).inverse() * (before.inverse() * pose);
-            let (dt, dr) = motion_magnitude(&error);
-            if dt > 0.01 || dr.to_degrees() > 1.0 {
-                dishonest.push((entry.index, dt * 100.0, dr.to_degrees()));
-            }
-        }
-        held += usize::from(report.verdict == Verdict::Held);
-        if report.verdict.is_fused() {
-            last_fused = Some((pose, truth));
-        }
-    }
-    let ate_cm = ate(slam.trajectory(), &sequence.ground_truth, 0.02)
-        .expect("poses match the truth")
-        .rmse_m
-        * 100.0;
-    Run {
-        ate_cm,
-        dishonest,
-        held,
-    }
 }
 
 #[test]

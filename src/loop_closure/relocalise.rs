@@ -414,13 +414,13 @@ impl Relocaliser {
         {
             return refuse(attempt, PlaceRefusal::FarFromKeyframe);
         }
-        let Some(coarsest) = pyramid.levels.last() else {
+        let Some(sampled) = pyramid.check_level() else {
             return refuse(attempt, PlaceRefusal::Lost);
         };
         let verify = &normal.verify;
         let (free_space, landed) =
-            free_space_violation(&self.prediction, &coarsest.vertices, 1, &pose, verify);
-        let see_through = see_through_fraction(&self.prediction, coarsest, &pose, verify);
+            free_space_violation(&self.prediction, &sampled.vertices, 1, &pose, verify);
+        let see_through = see_through_fraction(&self.prediction, sampled, &pose, verify);
         attempt.free_space = free_space.max(see_through);
         let limit = verify.max_free_space_fraction;
         if landed == 0 || free_space > limit || see_through > limit {

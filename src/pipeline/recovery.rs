@@ -260,11 +260,11 @@ impl Judge<'_> {
     }
 
     /// Fraction of the frame's points that land in the model's free space
-    /// seen from `pose`. The coarsest level's points (160x120 from 640x480)
-    /// tell a right pose (violations <= 1 %) from a wrong one (>= 19 %) at
-    /// a sixteenth of the full resolution's cost.
+    /// seen from `pose`, sampled on [`FramePyramid::check_level`] (160x120
+    /// from 640x480): it tells a right pose (violations <= 1 %) from a
+    /// wrong one (>= 19 %) at a sixteenth of the full resolution's cost.
     fn free_space(&self, pose: &DAffine3) -> f64 {
-        let vertices = self.pyramid.levels.last().map_or(&[][..], |l| &l.vertices);
+        let vertices = self.pyramid.check_level().map_or(&[][..], |l| &l.vertices);
         free_space_violation(self.prediction, vertices, 1, pose, &self.verify).0
     }
 

@@ -5,6 +5,7 @@
 
 pub mod revisit;
 pub mod run_bits;
+pub mod truth_run;
 
 use glam::DAffine3;
 use std::path::{Path, PathBuf};
