@@ -90,6 +90,25 @@ impl SlamConfig {
         }
     }
 
+    /// Pyramid levels of the images tracked: with `half_resolution`, one
+    /// fewer than `preprocess.levels` (at least one), so that halving a
+    /// frame drops its finest level and keeps its coarsest. A 640x480
+    /// sequence at half resolution is tracked from 160x120, as at full
+    /// size: from 80x60 the coarse-to-fine start slid 3.6-5 cm into a
+    /// wrong basin for single frames where each circle of the noisy
+    /// synthetic room starts (`examples/ten_circles.rs`: ATE 0.34 cm
+    /// after ten circles, 0.076 cm from 160x120), and the noisy long
+    /// ICL-NUIM office slid along its ceiling-wall join (seeds 2 / 3:
+    /// 3.9 / 3.5 cm, 0.65 / 0.64 cm from 160x120).
+    #[must_use]
+    pub fn working_levels(&self) -> usize {
+        if self.half_resolution {
+            self.preprocess.levels.saturating_sub(1).max(1)
+        } else {
+            self.preprocess.levels
+        }
+    }
+
     /// Checks intrinsics, depth settings and pyramid against each other.
     pub fn validate(&self) -> Result<(), PipelineError> {
         let k = &self.intrinsics;

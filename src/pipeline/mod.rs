@@ -34,7 +34,7 @@ use crate::fusion::{
 use crate::loop_closure::relocalise::Relocaliser;
 use crate::loop_closure::{GlobalLook, LoopCloser, LoopFrame, LoopOutcome};
 use crate::noise::{depth_is_clean, SensorNoise};
-use crate::preprocess::{half_resolution_into, FramePyramid};
+use crate::preprocess::{half_resolution_into, FramePyramid, PreprocessConfig};
 use crate::track::verify::TrackingChecks;
 use crate::track::{TrackerConfig, TrackerMode, TrackerWorkspace};
 use config::check_timestamp;
@@ -101,7 +101,11 @@ impl Pipeline {
         config.validate()?;
         // Grey levels are read only by the photometric term.
         let photometric = config.tracker.mode != TrackerMode::Icp;
-        let mut pyramid = FramePyramid::new(&config.working_intrinsics(), &config.preprocess);
+        let levels = PreprocessConfig {
+            levels: config.working_levels(),
+            ..config.preprocess
+        };
+        let mut pyramid = FramePyramid::new(&config.working_intrinsics(), &levels);
         pyramid.with_intensity = photometric;
         Ok(Self {
             pyramid,
