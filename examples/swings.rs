@@ -9,13 +9,15 @@
 //! degree, and ATE.
 //!
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
-//! [--swing-frames N] [--noisy] [--depth-only] [--no-dead-reckoning]
+//! [--swing-frames N] [--noisy] [--lidar] [--depth-only] [--no-dead-reckoning]
 //! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--verbose
 //! [--from FRAME]]` (`--verbose`: one line per frame for 50 frames from
 //! `--from`, default 30: verdict, the true turn, the pose's error).
 //! `--depth-only` pushes a constant grey colour image and tracks with ICP,
 //! as a Stray Scanner scan without `rgb/` runs natively: no photometric
-//! term, no feature estimate, so no dead reckoning.
+//! term, no feature estimate, so no dead reckoning. `--lidar` renders at
+//! an iPhone's LiDAR depth size instead, 256x192 with Stray Scanner's
+//! intrinsics scaled to it (fx = fy = 193 px), clean.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use surfel_slam::eval::ate;
@@ -50,6 +52,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // doubles the steps and every frame is lost.
     let k = if noisy {
         synthetic::default_intrinsics()
+    } else if args.iter().any(|a| a == "--lidar") {
+        Intrinsics::new(193.0, 193.0, 127.5, 95.5, 256, 192)
     } else {
         Intrinsics::new(262.5, 262.5, 159.5, 119.5, 320, 240)
     };
