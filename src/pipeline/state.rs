@@ -28,6 +28,9 @@ pub struct PipelineScalars {
     /// Index of that frame (`None`: the last fused one, as sessions saved
     /// before dead reckoning have it).
     pub placed_frame: Option<u32>,
+    /// Index of the last fused frame measured in every direction (not
+    /// held; `None` in sessions saved before it was kept).
+    pub measured_frame: Option<u32>,
     /// `previous_from_current` of the last two fused frames in a row.
     pub velocity: Option<DAffine3>,
     /// Loop closures, global ones, frame of the last global one.
@@ -131,6 +134,7 @@ impl Pipeline {
                 counts: self.counts,
                 last_good: self.last_good,
                 placed_frame: Some(self.placed_frame),
+                measured_frame: self.measured_frame,
                 velocity: self.velocity,
                 loop_counters: self.loop_closer.counters(),
                 depth_checked: self.settings_check.depth_checked,
@@ -192,6 +196,10 @@ impl Pipeline {
                 p.placed_frame
             )));
         }
+        if let Some(m) = s.measured_frame.filter(|&m| m >= s.frames) {
+            return Err(bad(format!("measured frame {m} for {frames} frames")));
+        }
+        p.measured_frame = s.measured_frame;
         p.velocity = s.velocity;
         p.loop_closer.restore_counters(s.loop_counters);
         p.settings_check.depth_checked = s.depth_checked;

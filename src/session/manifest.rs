@@ -94,6 +94,10 @@ pub struct Manifest {
     /// reckoning: the last fused one).
     #[serde(default)]
     pub placed_frame: Option<u32>,
+    /// Index of the last fused frame measured in every direction, not
+    /// held (absent in sessions saved before it was kept).
+    #[serde(default)]
+    pub measured_frame: Option<u32>,
     /// Motion of the last two fused frames in a row (`previous_from_current`).
     pub velocity: Option<[f64; 12]>,
     /// Loop closures so far.
@@ -134,6 +138,7 @@ impl Manifest {
             counts: [c.tracked, c.lost, c.recovered, c.held, c.lost_streak],
             last_good: s.last_good.as_ref().map(pose_to_rows),
             placed_frame: s.placed_frame,
+            measured_frame: s.measured_frame,
             velocity: s.velocity.as_ref().map(pose_to_rows),
             loop_closures: s.loop_counters.0,
             global_loop_closures: s.loop_counters.1,
@@ -188,6 +193,7 @@ impl Manifest {
             },
             last_good: self.last_good.as_ref().map(pose_from_rows),
             placed_frame: self.placed_frame,
+            measured_frame: self.measured_frame,
             velocity: self.velocity.as_ref().map(pose_from_rows),
             loop_counters: (
                 self.loop_closures,
