@@ -74,8 +74,8 @@ pub struct Pipeline {
     /// Index of that frame.
     placed_frame: u32,
     /// Index of the last fused frame whose pose was measured in every
-    /// direction (not `Held`): the start of the velocity that follows a
-    /// held run.
+    /// direction (not `Held` at the constant-velocity guess): the start
+    /// of the velocity that follows a held run.
     measured_frame: Option<u32>,
     /// Depth tiles of a dead-reckoned frame, which hide what lies behind
     /// it in its prediction (a fused frame's are the integrator's).
@@ -315,7 +315,10 @@ impl Pipeline {
             // prediction (so that it shows the map as corrected).
             closure = self.close_loops(&mut tracked.pose, index);
             t3b = now_ms();
-            self.predict(&tracked.pose, tracked.verdict == Verdict::Held);
+            // A held frame placed by the sparse estimate measured its held
+            // directions by features; only one held at the guess did not.
+            let at_guess = tracked.verdict == Verdict::Held && !tracked.checks.from_sparse;
+            self.predict(&tracked.pose, at_guess);
         }
         let t4 = now_ms();
         self.count_verdict(tracked.verdict);
@@ -478,15 +481,15 @@ impl Pipeline {
     /// frame just fused at `pose`: the model prediction, the photometric
     /// memory of this frame, the constant-velocity motion and the sparse
     /// estimator's reference.
-    fn predict(&mut self, pose: &DAffine3, held: bool) {
+    fn predict(&mut self, pose: &DAffine3, held_at_guess: bool) {
         // The warm-up counts fused frames: frames lost early must not end
         // it before the map had the frames to become stable.
         self.render_prediction(pose, self.counts.fused(), false);
         self.velocity = match (self.last_good, self.counts.lost_streak) {
-            (Some(before), 0) => Some(self.motion_since_measured(before, pose, held)),
+            (Some(before), 0) => Some(self.motion_since_measured(before, pose, held_at_guess)),
             _ => None,
         };
-        if !held {
+        if !held_at_guess {
             self.measured_frame = Some(self.frame_index);
         }
         self.place_current(pose);
@@ -494,18 +497,24 @@ impl Pipeline {
     }
 
     /// The next frame's constant-velocity motion, from the frame just
-    /// fused at `pose` (`held`: some of its directions were kept at the
-    /// guess) and the one before it at `before`: the step between them,
+    /// fused at `pose` (`held_at_guess`: some of its directions were kept
+    /// at the constant-velocity guess) and the one before it at `before`:
+    /// the step between them,
     /// except for a measured frame after a held run, whose step corrects
     /// what the run drifted and as a velocity would repeat that correction
     /// every frame of the next held run (the synthetic room at 256x192
     /// without colour: 9.7 cm a frame, 230 cm in 22 frames). That step
     /// keeps its rotation, which held frames measure, and moves the camera
     /// centre by its mean per frame since the last measured frame.
-    fn motion_since_measured(&self, before: DAffine3, pose: &DAffine3, held: bool) -> DAffine3 {
+    fn motion_since_measured(
+        &self,
+        before: DAffine3,
+        pose: &DAffine3,
+        held_at_guess: bool,
+    ) -> DAffine3 {
         let step = before.inverse() * *pose;
         let after_held_run = match self.measured_frame {
-            Some(m) if !held && m < self.placed_frame => Some(m),
+            Some(m) if !held_at_guess && m < self.placed_frame => Some(m),
             _ => None,
         };
         let Some(m) = after_held_run else {
