@@ -68,6 +68,25 @@ fn frames_along(config: &SlamConfig, path: &SwingPath) -> (Vec<RgbdFrame>, Vec<(
         .unzip()
 }
 
+/// [`frames_along`] a swing of `amplitude_deg` in `swing_frames`, with
+/// the grey colour of a depth-only sequence.
+fn depth_only_frames(
+    config: &SlamConfig,
+    amplitude_deg: f64,
+    swing_frames: f64,
+) -> (Vec<RgbdFrame>, Vec<(f64, DAffine3)>) {
+    let path = SwingPath {
+        amplitude_deg,
+        swing_frames,
+        ..SwingPath::default()
+    };
+    let (mut frames, truth) = frames_along(config, &path);
+    for f in &mut frames {
+        f.rgb.fill(surfel_slam::dataset::DEPTH_ONLY_GREY);
+    }
+    (frames, truth)
+}
+
 struct Outcome {
     lost: usize,
     longest_loss: usize,
@@ -189,15 +208,7 @@ fn a_session_saved_while_dead_reckoning_continues_exactly_and_a_reset_replays_it
 fn without_colour_a_swing_onto_a_wall_and_the_floor_does_not_slide() {
     let mut config = config(true);
     config.tracker.mode = surfel_slam::track::TrackerMode::Icp;
-    let path = SwingPath {
-        amplitude_deg: 20.0,
-        swing_frames: 10.0,
-        ..SwingPath::default()
-    };
-    let (mut frames, truth) = frames_along(&config, &path);
-    for f in &mut frames {
-        f.rgb.fill(surfel_slam::dataset::DEPTH_ONLY_GREY);
-    }
+    let (frames, truth) = depth_only_frames(&config, 20.0, 10.0);
     let mut slam = Pipeline::new(config).expect("valid config");
     let mut held = 0;
     for (i, f) in frames.iter().enumerate() {
@@ -240,15 +251,7 @@ fn without_colour_at_lidar_size_a_held_run_does_not_repeat_its_correction() {
     config.intrinsics = Intrinsics::new(193.0, 193.0, 127.5, 95.5, 256, 192);
     config.depth = synthetic::depth_settings();
     config.tracker.mode = surfel_slam::track::TrackerMode::Icp;
-    let path = SwingPath {
-        amplitude_deg: 60.0,
-        swing_frames: 20.0,
-        ..SwingPath::default()
-    };
-    let (mut frames, truth) = frames_along(&config, &path);
-    for f in &mut frames {
-        f.rgb.fill(surfel_slam::dataset::DEPTH_ONLY_GREY);
-    }
+    let (frames, truth) = depth_only_frames(&config, 60.0, 20.0);
     let mut slam = Pipeline::new(config.clone()).expect("valid config");
     let reports = run(&mut slam, &frames, 0);
     let held: Vec<bool> = reports.iter().map(|r| r.starts_with("Held")).collect();
