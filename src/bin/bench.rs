@@ -371,6 +371,10 @@ fn print_every_window(recording: &Recording) {
         "windows_k_visited_by_fusion: {}",
         window_medians(&every, |i| sizes[i].1 / 1e3)
     );
+    println!(
+        "windows_k_surfels: {}",
+        window_medians(&every, |i| sizes[i].0 / 1e3)
+    );
 }
 
 /// The cost of the same views (the same frames in the same direction) on

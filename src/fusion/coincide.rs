@@ -1,10 +1,17 @@
 //! Surfaces mapped twice: a surfel that became stable recently (a copy)
-//! and lies on an older, inactive, stable surfel is merged into the older
-//! one, which takes the later `last_seen`. Fusion associates a measurement
-//! only with the active surfels whose centre lands on its pixel, so a
-//! return to a place whose surfels went inactive (or whose centres now fall
-//! between pixels) lays a second copy beside the first
+//! and lies on an older stable surfel from an earlier visit is merged into
+//! the older one, which takes the later `last_seen`. Fusion associates a
+//! measurement only with the active surfels whose centre lands on its
+//! pixel, so a return to a place whose surfels went inactive (or whose
+//! centres now fall between pixels) lays a second copy beside the first
 //! (`docs/performance.md#revisit-growth`).
+//!
+//! An earlier visit's surfel is one that is inactive, or one made more than
+//! the active window before the copy: such a surfel is active again only
+//! because the return woke it (a merge, or fusion at its pixel), and the
+//! copies laid between its neighbours' centres would otherwise stay for
+//! good. Surfels made within the active window are this visit's own: a
+//! copy beside them is fusion's business, not a revisit's.
 //!
 //! "On" depends on how the copies lie as a whole. Scattered about the old
 //! surfaces (sensor noise, a return along a path tracked right), a copy goes
@@ -103,8 +110,10 @@ fn from_key(key: u64) -> Option<(f32, usize)> {
 /// Merges the copies due at frame `now` (see
 /// [`FusionConfig::merge_copies_after_frames`]): every stable surfel
 /// created in the cleanup span that ends `merge_copies_after_frames` before
-/// `now` is merged into the nearest older, inactive, stable surfel it lies
-/// on (see the module documentation), which takes its `last_seen`.
+/// `now` is merged into the nearest stable surfel of an earlier visit it
+/// lies on (see the module documentation), which takes its `last_seen`.
+/// Whether the copies are offset as a whole is judged against the inactive
+/// surfels alone, the surfaces the loop checks register against.
 /// Returns how many were merged (marked absorbed, removed at the next
 /// cleanup).
 pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usize {
@@ -118,9 +127,8 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
     let young_from = young_to
         .saturating_sub(3 * config.cleanup_interval_frames.max(1) + config.unstable_max_age);
     let active_from = config.active_at(now).start;
+    let earlier_visit_before = young_from.saturating_sub(config.active_window_frames);
     let stable = config.stable_confidence;
-    // Nothing inactive (a run shorter than the window): no work, and no
-    // allocation that would raise the wasm memory's high-water mark.
     let n = map.common_len();
     let (positions, normals) = (map.positions(), map.normals());
     let (first_seen, last_seen, confidences, radii) = (
@@ -129,7 +137,15 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
         map.confidences(),
         map.radii(),
     );
-    if !(0..n).any(|b| last_seen[b] < active_from && confidences[b] >= stable) {
+    let inactive = |b: usize| last_seen[b] < active_from;
+    let of_earlier_visit = |b: usize| {
+        confidences[b] >= stable
+            && first_seen[b] < young_from
+            && (inactive(b) || first_seen[b] < earlier_visit_before)
+    };
+    // No earlier visit (a run shorter than the window): no work, and no
+    // allocation that would raise the wasm memory's high-water mark.
+    if !(0..n).any(of_earlier_visit) {
         return 0;
     }
     let young: Vec<u32> = (0..n)
@@ -168,17 +184,15 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
     lo -= Vec3::splat(reach);
     hi += Vec3::splat(reach);
     let cos_gate = libm::cosf(config.normal_gate_deg.to_radians());
-    // Per copy (index into `young`), the nearest old surfel within reach
-    // and the nearest on whose disk it lies, normals within the gate, found
-    // from the old side as `pair_key`s.
+    // Per copy (index into `young`), the nearest inactive old surfel within
+    // reach and the nearest old surfel on whose disk it lies, normals within
+    // the gate, found from the old side as `pair_key`s.
     let nearest: Vec<AtomicU64> = young.iter().map(|_| AtomicU64::new(u64::MAX)).collect();
     let nearest_on_disk: Vec<AtomicU64> = young.iter().map(|_| AtomicU64::new(u64::MAX)).collect();
     (0..n)
         .into_par_iter()
         .filter(|&b| {
-            first_seen[b] < young_from
-                && last_seen[b] < active_from
-                && confidences[b] >= stable
+            of_earlier_visit(b)
                 && positions[b].cmpge(lo).all()
                 && positions[b].cmple(hi).all()
                 && near_young.may_hold(cell(positions[b]))
@@ -196,7 +210,9 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
                     let distance = offset.length();
                     if distance < reach && normals[j].dot(normals[b]) >= cos_gate {
                         let key = pair_key(distance, b);
-                        nearest[y as usize].fetch_min(key, Ordering::Relaxed);
+                        if inactive(b) {
+                            nearest[y as usize].fetch_min(key, Ordering::Relaxed);
+                        }
                         if on_disk(offset, normals[b], radii[b]) {
                             nearest_on_disk[y as usize].fetch_min(key, Ordering::Relaxed);
                         }
@@ -478,7 +494,41 @@ mod tests {
     }
 
     #[test]
-    fn far_turned_active_or_not_yet_due_copies_stay() {
+    fn a_copy_on_a_woken_surfel_of_an_earlier_visit_is_merged_one_beside_this_visits_is_not() {
+        let config = FusionConfig::default();
+        let now = due(&config);
+        // Made at frame 0 and woken at 250 by the return: an earlier visit's.
+        let mut woken = old_and_copy(Vec3::new(0.004, 0.0, 0.003), Vec3::Z);
+        woken.touch(0, 250);
+        assert_eq!(merge_copies(&mut woken, &config, now), 1);
+        assert!(woken.confidences()[1] < 0.0, "the copy is absorbed");
+        // Made at frame 200 and seen since: this visit's, fusion's to merge
+        // with. An inactive surfel a metre away gives the cleanup work.
+        let mut this_visit = SurfelMap::default();
+        this_visit.push(Vec3::new(1.0, 0.0, 2.0), Vec3::Z, [0; 4], 0.005, 20.0, 0);
+        this_visit.push(Vec3::new(0.0, 0.0, 2.0), Vec3::Z, [0; 4], 0.005, 20.0, 200);
+        this_visit.push(
+            Vec3::new(0.004, 0.0, 2.003),
+            Vec3::Z,
+            [0; 4],
+            0.005,
+            20.0,
+            300,
+        );
+        assert_eq!(merge_copies(&mut this_visit, &config, now), 0);
+        // The same surfel made at frame 0 is an earlier visit's.
+        this_visit.push(Vec3::new(0.0, 0.0, 2.0), Vec3::Z, [0; 4], 0.005, 20.0, 0);
+        this_visit.touch(3, 250);
+        assert_eq!(merge_copies(&mut this_visit, &config, now), 1);
+        assert_eq!(
+            this_visit.last_seen()[3],
+            300,
+            "it takes the copy's last_seen"
+        );
+    }
+
+    #[test]
+    fn far_turned_or_not_yet_due_copies_stay() {
         let config = FusionConfig::default();
         let now = due(&config);
         let mut far = old_and_copy(Vec3::new(0.02, 0.0, 0.0), Vec3::Z);
@@ -487,10 +537,6 @@ mod tests {
         assert_eq!(merge_copies(&mut turned, &config, now), 0);
         let mut early = old_and_copy(Vec3::ZERO, Vec3::Z);
         assert_eq!(merge_copies(&mut early, &config, 310), 0);
-        // An old surfel still active is fusion's to merge with, not ours.
-        let mut active = old_and_copy(Vec3::ZERO, Vec3::Z);
-        active.touch(0, 250);
-        assert_eq!(merge_copies(&mut active, &config, now), 0);
         let off = FusionConfig {
             merge_copies_after_frames: 0,
             ..config

@@ -58,7 +58,8 @@ pub struct FusionConfig {
     /// ones included; 0 counts as 1.
     pub active_window_frames: u32,
     /// A stable surfel that has lain this many frames on an older stable
-    /// surfel that was inactive (within 1 cm, normals within
+    /// surfel of an earlier visit (inactive, or made more than
+    /// `active_window_frames` before it; on its disk, normals within
     /// `normal_gate_deg`) is merged into it, which becomes active again:
     /// a return to a place whose surfels went inactive, or whose centres
     /// fall between the pixels, lays a second copy beside the first and the
