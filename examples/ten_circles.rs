@@ -10,8 +10,15 @@
 //! so far; and each closure as it happens, with the current pose's distance
 //! from the truth before and after it.
 //!
+//! With `--interleaved`, a twin pipeline plays the first circle again in
+//! turns of 25 frames between the last circle's, and the last line gives
+//! the last circle's median frame over the twin's: both measured in the
+//! same minutes, so the machine's drift falls on both alike (the `bench`
+//! command's `interleaved_late_over_early`). The twin's map counts in the
+//! last circle's RSS columns.
+//!
 //! `cargo run --release --example ten_circles [-- --circles N]
-//! [--frames-per-circle N] [--clean] [--range-noise-factor F]`
+//! [--frames-per-circle N] [--clean] [--range-noise-factor F] [--interleaved]`
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use surfel_slam::eval::ate;
@@ -65,8 +72,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     {
         config.preprocess.range_noise_factor = factor.parse()?;
     }
+    let interleaved = args.iter().any(|a| a == "--interleaved");
     let scene = Scene::room();
     let mut slam = Pipeline::new(config.clone())?;
+    // Made only when asked: its buffers would count in every circle's RSS.
+    let mut twin = if interleaved {
+        Some(Pipeline::new(config.clone())?)
+    } else {
+        None
+    };
+    let mut twin_ms = Vec::new();
+    let render = |i: usize| {
+        synthetic::render(
+            &scene,
+            &k,
+            &loop_pose(i, per_circle),
+            &NoiseModel::none(),
+            i as u64,
+        )
+        .to_frame(&config.depth)
+    };
     let origin = loop_pose(0, per_circle).inverse();
     let mut truth = Vec::new();
     println!(
@@ -78,10 +103,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut last = None;
         for j in 0..per_circle {
             let i = circle * per_circle + j;
+            if let Some(twin) = twin
+                .as_mut()
+                .filter(|_| circle + 1 == circles && j % 25 == 0)
+            {
+                for t in j..(j + 25).min(per_circle) {
+                    let report = twin.push_frame(&render(t)?, t as f64)?;
+                    twin_ms.push(report.timings.total_ms);
+                }
+            }
             let pose = loop_pose(i, per_circle);
-            let frame = synthetic::render(&scene, &k, &pose, &NoiseModel::none(), i as u64)
-                .to_frame(&config.depth)?;
-            let report = slam.push_frame(&frame, i as f64)?;
+            let report = slam.push_frame(&render(i)?, i as f64)?;
             ms.push(report.timings.total_ms);
             lost += usize::from(matches!(report.verdict, Verdict::Lost(_)));
             held += usize::from(report.verdict == Verdict::Held);
@@ -110,8 +142,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
             last = Some(report);
         }
-        ms.sort_by(f64::total_cmp);
-        let median = ms.get(ms.len() / 2).copied().unwrap_or(0.0);
+        let median_ms = median(&mut ms);
         let (peak, rss) = rss_mib();
         let a = ate(slam.trajectory(), &truth, 0.01)?;
         let report = last.expect("a frame");
@@ -122,13 +153,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             report.surfel_slots,
             peak,
             rss,
-            median,
+            median_ms,
             lost,
             held,
             slam.loop_closures(),
             slam.global_loop_closures(),
             100.0 * a.rmse_m
         );
+        if !twin_ms.is_empty() {
+            let first = median(&mut twin_ms);
+            println!(
+                "interleaved: circle {circles}'s median frame {median_ms:.1} ms, circle 1's played beside it {first:.1} ms, ratio {:.3}",
+                median_ms / first
+            );
+        }
     }
     Ok(())
+}
+
+/// The median of `values` (sorted in place); 0 for none.
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(0.0)
 }
