@@ -7,11 +7,11 @@
 //! (`docs/performance.md#revisit-growth`).
 //!
 //! An earlier visit's surfel is one that is inactive, or one made more than
-//! the active window before the copy: such a surfel is active again only
-//! because the return woke it (a merge, or fusion at its pixel), and the
-//! copies laid between its neighbours' centres would otherwise stay for
-//! good. Surfels made within the active window are this visit's own: a
-//! copy beside them is fusion's business, not a revisit's.
+//! the active window before the copy: mostly one a return woke (a merge
+//! wakes the old surfel, and the copies due beside it at the next cleanups
+//! would otherwise stay for good), else a surface kept in view all that
+//! time, long since settled. Surfels made within the active window are this
+//! visit's own: a copy beside them is fusion's business, not a revisit's.
 //!
 //! "On" depends on how the copies lie as a whole. Scattered about the old
 //! surfaces (sensor noise, a return along a path tracked right), a copy goes
