@@ -24,6 +24,7 @@ pub mod mesh;
 pub mod noise;
 pub mod ordered_sum;
 pub mod pipeline;
+mod pool;
 pub mod portable_math;
 mod prefetch;
 pub mod preprocess;

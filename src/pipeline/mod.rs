@@ -261,6 +261,14 @@ impl Pipeline {
         frame: &RgbdFrame,
         timestamp: f64,
     ) -> Result<FrameReport, PipelineError> {
+        crate::pool::on_pool(|| self.push_frame_here(frame, timestamp))
+    }
+
+    fn push_frame_here(
+        &mut self,
+        frame: &RgbdFrame,
+        timestamp: f64,
+    ) -> Result<FrameReport, PipelineError> {
         self.decoded_was_pushed = false;
         check_timestamp(timestamp)?;
         let input = self.config.intrinsics;
