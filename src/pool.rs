@@ -3,7 +3,7 @@
 //! A parallel region started from a thread outside the pool (the CLI's
 //! main thread, the page's worker) is handed to the pool and the caller
 //! sleeps until it is done: one cross-thread wake-up each way per region.
-//! A frame runs a few hundred small regions (every tracking iteration at
+//! A frame runs many small regions (every tracking iteration at
 //! every pyramid level is one), and in a browser a wake-up through
 //! `Atomics.wait` / `notify` costs far more than a futex. Run from a pool
 //! thread, a region is a job pushed on that thread's own queue, taken by
