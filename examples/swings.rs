@@ -10,7 +10,7 @@
 //!
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
 //! [--swing-frames N] [--noisy] [--lidar] [--depth-only] [--no-dead-reckoning]
-//! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--verbose
+//! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--tracker icp|joint|rgb] [--verbose
 //! [--from FRAME]]` (`--verbose`: one line per frame for 50 frames from
 //! `--from`, default 30: verdict, the true turn, the pose's error).
 //! `--depth-only` pushes a constant grey colour image and tracks with ICP,
@@ -73,6 +73,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         config.tracker.verify.dead_reckoning_min_inliers,
     );
     config.tracker.verify.dead_reckoning = !args.iter().any(|a| a == "--no-dead-reckoning");
+    let tracker: String = arg(&args, "--tracker", String::new());
+    if let Some(mode) = surfel_slam::track::TrackerMode::from_name(&tracker) {
+        config.tracker.mode = mode;
+    }
     let depth_only = args.iter().any(|a| a == "--depth-only");
     if depth_only {
         config.tracker.mode = surfel_slam::track::TrackerMode::Icp;
