@@ -2,7 +2,7 @@
 //! the wasm module only (natively `accumulate_row_taps` is compiled for AVX2).
 //! Four pixels per iteration (eight, two vectors, measured slower in V8).
 //!
-//! Per pixel it computes [`super::range_weight`]'s values bit for bit, with
+//! Per pixel it computes [`super::bilateral::range_weight`]'s values bit for bit, with
 //! two instructions fewer per tap than what the auto-vectoriser makes of the
 //! scalar loop:
 //! - the clamp `if t > 0 { t } else { 0 }` is one `f32x4.pmax(0, t)`
@@ -46,7 +46,7 @@ struct Consts {
     floor: v128,
 }
 
-/// [`super::range_weight`] for four pixels: `d` the neighbours, `c` the centres.
+/// [`super::bilateral::range_weight`] for four pixels: `d` the neighbours, `c` the centres.
 #[inline(always)]
 fn range_weight4(d: v128, c: v128, spatial: v128, k: &Consts) -> v128 {
     let diff = f32x4_sub(d, c);
@@ -94,7 +94,7 @@ impl Sums {
     }
 }
 
-/// `super::accumulate_row_taps` in simd128: the seven taps of one window row
+/// `super::bilateral::accumulate_row_taps` in simd128: the seven taps of one window row
 /// over the columns `lo..hi` of `row`, where every tap stays inside it.
 #[inline(always)]
 pub(super) fn accumulate_row_taps(
@@ -108,7 +108,15 @@ pub(super) fn accumulate_row_taps(
 ) {
     let inv_sixteenth = inv_two_sigma2 * (1.0 / 16.0);
     if !inv_sixteenth.is_normal() {
-        super::accumulate_row_taps(row, centre, taps, inv_two_sigma2, (lo, hi), acc, wacc);
+        super::bilateral::accumulate_row_taps(
+            row,
+            centre,
+            taps,
+            inv_two_sigma2,
+            (lo, hi),
+            acc,
+            wacc,
+        );
         return;
     }
     let n = hi - lo;
@@ -143,7 +151,7 @@ pub(super) fn accumulate_row_taps(
         let (mut sum, mut weight) = (0.0, 0.0);
         for t in 0..7 {
             let d = srcs[t][i];
-            let wgt = super::range_weight(d, c, taps[t].2, inv_two_sigma2);
+            let wgt = super::bilateral::range_weight(d, c, taps[t].2, inv_two_sigma2);
             sum += wgt * d;
             weight += wgt;
         }
@@ -193,7 +201,7 @@ mod tests {
             let (mut acc, mut wacc) = (start.clone(), start.clone());
             let (mut want_acc, mut want_wacc) = (start.clone(), start);
             accumulate_row_taps(&row, &centre, &taps, inv, (6, 6 + n), &mut acc, &mut wacc);
-            super::super::accumulate_row_taps(
+            super::super::bilateral::accumulate_row_taps(
                 &row,
                 &centre,
                 &taps,
