@@ -46,13 +46,16 @@
 //! directions held ([`super::track_holding`]).
 
 use super::icp::IcpGates;
-use crate::camera::Intrinsics;
 use crate::fusion::Prediction;
 use crate::preprocess::{normals_into, PyramidLevel};
 use crate::se3::NormalEquations;
 use crate::se3::RigidF32;
 use glam::Vec3;
-use rayon::prelude::*;
+
+mod grid;
+use grid::{block_average, count_correspondences};
+mod noise_floor;
+use noise_floor::{noise_floor_at_full_resolution, noise_floor_of_grid};
 
 /// Columns of the grid the geometry is measured on.
 pub const GRID_COLUMNS: usize = 80;
@@ -366,207 +369,10 @@ impl FreeDirections {
     }
 }
 
-/// Counts into `grid.counts`, per grid cell (`width` columns, `factor`
-/// pixels of level `k` square), the model pixels (every second one each
-/// way) with a normal that `camera_from_world` puts in it within `gates`'
-/// distance of the cell's averaged point.
-///
-/// Not within the normal gate of the cell's normal: under quantised depth
-/// the grid's normals follow the terraces and fail a 20 degree gate on
-/// oblique surfaces that ICP, on finer levels, does use (the synthetic
-/// loop under structured-light noise then read 13 views that are not
-/// degenerate as free, and held them).
-fn count_correspondences(
-    model: &Prediction,
-    mk: &Intrinsics,
-    (k, width, factor): (&Intrinsics, usize, usize),
-    camera_from_world: &RigidF32,
-    gates: &IcpGates,
-    grid: &mut GridWorkspace,
-) {
-    let height = grid.vertices.len() / width.max(1);
-    let (vertices, normals) = (&grid.vertices, &grid.normals);
-    // The sampled model rows are projected in parallel, each listing the
-    // cells it counts in; the counts are then added up in row order.
-    grid.hits.resize_with(mk.height.div_ceil(2), Vec::new);
-    grid.hits.par_iter_mut().enumerate().for_each(|(r, hits)| {
-        hits.clear();
-        let v = 2 * r;
-        for u in (0..mk.width).step_by(2) {
-            let i = v * mk.width + u;
-            let (Some(&normal), Some(&vertex)) = (model.normals.get(i), model.vertices.get(i))
-            else {
-                continue;
-            };
-            if normal == Vec3::ZERO {
-                continue;
-            }
-            let p = camera_from_world.point(vertex);
-            if p.z <= 0.0 {
-                continue;
-            }
-            let Some(j) = k.pixel_index(k.project(p)) else {
-                continue;
-            };
-            let (gu, gv) = (j % k.width / factor, j / k.width / factor);
-            if gu >= width || gv >= height {
-                continue;
-            }
-            let g = gv * width + gu;
-            let (q, n) = (vertices[g], normals[g]);
-            if n != Vec3::ZERO && (p - q).length() <= gates.distance_gate_m {
-                hits.push(g as u32);
-            }
-        }
-    });
-    grid.counts.clear();
-    grid.counts.resize(grid.vertices.len(), 0);
-    for &g in grid.hits.iter().flatten() {
-        grid.counts[g as usize] += 1;
-    }
-}
-
-/// Normal noise of variance `s^2` along each tangent axis makes two
-/// neighbours' normals differ by `|a - b|^2` with mean `4 s^2`, exponentially
-/// distributed (two axes), so with median `4 s^2 ln 2`; `s^2` is what noise
-/// alone adds to the information along any direction.
-const FIRST_DIFFERENCE_TO_VARIANCE: f64 = 1.0 / (4.0 * std::f64::consts::LN_2);
-
-/// As [`FIRST_DIFFERENCE_TO_VARIANCE`] for second differences
-/// `|a - 2 b + c|^2` of three neighbours in a line: mean `12 s^2`.
-const SECOND_DIFFERENCE_TO_VARIANCE: f64 = 1.0 / (12.0 * std::f64::consts::LN_2);
-
-/// Relative depth step between neighbours taken for a silhouette, not a
-/// surface (as `block_average` and the pyramid take it).
-const SAME_SURFACE: f32 = 0.05;
-
-/// The information per point that the grid's normal noise alone gives
-/// along any direction: from the median squared difference between the
-/// normals of 4-neighbouring counted cells on one surface (curvature and
-/// creases count as noise here, which makes the grid hold generously; the
-/// full resolution confirms). Reads `grid.normals`, `vertices` and
-/// `counts`; 0 without neighbours.
-fn noise_floor_of_grid(grid: &mut GridWorkspace, width: usize) -> f64 {
-    let GridWorkspace {
-        vertices,
-        normals,
-        counts,
-        differences,
-        ..
-    } = grid;
-    differences.clear();
-    let height = vertices.len() / width.max(1);
-    let counted = |i: usize| counts[i] > 0 && normals[i] != Vec3::ZERO;
-    for v in 0..height {
-        for u in 0..width {
-            let i = v * width + u;
-            if !counted(i) {
-                continue;
-            }
-            let right = (u + 1 < width).then_some(i + 1);
-            let below = (v + 1 < height).then_some(i + width);
-            for j in [right, below].into_iter().flatten() {
-                if counted(j) && on_one_surface(vertices[i].z, vertices[j].z) {
-                    differences.push(f64::from((normals[i] - normals[j]).length_squared()));
-                }
-            }
-        }
-    }
-    median(differences) * FIRST_DIFFERENCE_TO_VARIANCE
-}
-
-/// The information per point that the normal noise of `fine` (the finest
-/// level, intrinsics `k`) alone gives along any direction: from the median
-/// squared second difference of the normals of pixels [`CONFIRM_STEP`]
-/// apart in rows and columns, around the sampled pixels where `covered`.
-/// 0 without such triples.
-fn noise_floor_at_full_resolution(
-    fine: &PyramidLevel,
-    k: &Intrinsics,
-    covered: impl Fn(usize, usize) -> bool,
-    differences: &mut Vec<f64>,
-) -> f64 {
-    differences.clear();
-    let s = CONFIRM_STEP;
-    let (vertices, normals) = (&fine.vertices, &fine.normals);
-    let measured = |i: usize| vertices[i].z > 0.0 && normals[i] != Vec3::ZERO;
-    for row in (s..k.height.saturating_sub(s)).step_by(s) {
-        for col in (s..k.width.saturating_sub(s)).step_by(s) {
-            let i = row * k.width + col;
-            if !covered(row, col) || !measured(i) {
-                continue;
-            }
-            let z = vertices[i].z;
-            for (a, b) in [(i - s, i + s), (i - s * k.width, i + s * k.width)] {
-                if measured(a)
-                    && measured(b)
-                    && on_one_surface(z, vertices[a].z)
-                    && on_one_surface(z, vertices[b].z)
-                {
-                    let d = normals[a] - 2.0 * normals[i] + normals[b];
-                    differences.push(f64::from(d.length_squared()));
-                }
-            }
-        }
-    }
-    median(differences) * SECOND_DIFFERENCE_TO_VARIANCE
-}
-
-/// Whether depths `a` and `b` (metres) are close enough to be one surface.
-fn on_one_surface(a: f32, b: f32) -> bool {
-    (a - b).abs() <= SAME_SURFACE * a
-}
-
-/// Median of `values` (reordered), 0 when empty.
-fn median(values: &mut [f64]) -> f64 {
-    if values.is_empty() {
-        return 0.0;
-    }
-    let at = values.len() / 2;
-    *values.select_nth_unstable_by(at, f64::total_cmp).1
-}
-
-/// Averages `vertices` (`width` columns) over square blocks so that at most
-/// [`GRID_COLUMNS`] remain, into `grid.vertices`; returns the grid's width
-/// and the block size.
-/// A block averages the valid vertices within 5 % of its first valid
-/// one's depth (as the pyramid does), so silhouettes are not bridged.
-fn block_average(vertices: &[Vec3], width: usize, grid: &mut GridWorkspace) -> (usize, usize) {
-    let factor = width.div_ceil(GRID_COLUMNS).max(1);
-    let height = vertices.len() / width;
-    let (gw, gh) = (width / factor, height / factor);
-    grid.vertices.clear();
-    grid.vertices.resize(gw * gh, Vec3::ZERO);
-    for gv in 0..gh {
-        for gu in 0..gw {
-            let mut first = 0.0f32;
-            let (mut sum, mut n) = (Vec3::ZERO, 0.0f32);
-            for v in gv * factor..(gv + 1) * factor {
-                for u in gu * factor..(gu + 1) * factor {
-                    let p = vertices[v * width + u];
-                    if p.z <= 0.0 {
-                        continue;
-                    }
-                    if first == 0.0 {
-                        first = p.z;
-                    }
-                    if (p.z - first).abs() <= 0.05 * first {
-                        sum += p;
-                        n += 1.0;
-                    }
-                }
-            }
-            if n > 0.0 {
-                grid.vertices[gv * gw + gu] = sum / n;
-            }
-        }
-    }
-    (gw, factor)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera::Intrinsics;
     use crate::preprocess::back_project_into;
 
     /// A 160x120 view (the grid averages it 2x2 down to 80x60) of the
