@@ -10,7 +10,7 @@
 //!
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
 //! [--swing-frames N] [--noisy] [--lidar] [--depth-only] [--no-dead-reckoning]
-//! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--tracker icp|joint|rgb] [--verbose
+//! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--tracker icp|joint|rgb] [--smooth-blur] [--verbose
 //! [--from FRAME]]` (`--verbose`: one line per frame for 50 frames from
 //! `--from`, default 30: verdict, the true turn, the pose's error).
 //! `--depth-only` pushes a constant grey colour image and tracks with ICP,
@@ -90,12 +90,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Fused frames more than 10 degrees from the true orientation.
     let mut fused_far = 0;
     let mut last_fused: Option<(usize, glam::DAffine3)> = None;
+    // `--smooth-blur`: one sample per pixel the view turns during the
+    // exposure (at least 5), so that a fast turn smears instead of
+    // leaving 5 sharp ghosts.
+    let smooth_blur = args.iter().any(|a| a == "--smooth-blur");
+    let samples = |t: f64| {
+        if !smooth_blur {
+            return 5;
+        }
+        let turn = synthetic::turn_between_deg(
+            &path.pose(t - exposure / 2.0),
+            &path.pose(t + exposure / 2.0),
+        );
+        ((turn.to_radians() * k.fx as f64).ceil() as usize + 1).max(5)
+    };
     for i in 0..frames {
         let t = i as f64;
         let rendered = render_blurred(
             &scene,
             &k,
-            &path.exposure(t, exposure, 5),
+            &path.exposure(t, exposure, samples(t)),
             &NoiseModel::none(),
             i as u64,
         );
