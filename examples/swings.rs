@@ -9,13 +9,15 @@
 //! degree, and ATE.
 //!
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
-//! [--swing-frames N] [--noisy] [--lidar] [--depth-only] [--no-dead-reckoning]
+//! [--swing-frames N] [--noisy] [--lidar] [--depth-only] [--hand SHARE] [--no-dead-reckoning]
 //! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--tracker icp|joint|rgb] [--smooth-blur] [--verbose
 //! [--from FRAME]]` (`--verbose`: one line per frame for 50 frames from
 //! `--from`, default 30: verdict, the true turn, the pose's error).
 //! `--depth-only` pushes a constant grey colour image and tracks with ICP,
 //! as a Stray Scanner scan without `rgb/` runs natively: no photometric
-//! term, no feature estimate, so no dead reckoning. `--lidar` renders at
+//! term, no feature estimate, so no dead reckoning. `--hand 0.3` holds a
+//! hand in view, 0.35 m away over the image's lower-right 30 % of each
+//! side (`synthetic::hold_hand_in_view`). `--lidar` renders at
 //! an iPhone's LiDAR depth size instead, 256x192 with Stray Scanner's
 //! intrinsics scaled to it (fx = fy = 193 px), clean.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
@@ -90,6 +92,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Fused frames more than 10 degrees from the true orientation.
     let mut fused_far = 0;
     let mut last_fused: Option<(usize, glam::DAffine3)> = None;
+    let hand: f64 = arg(&args, "--hand", 0.0);
     // `--smooth-blur`: one sample per pixel the view turns during the
     // exposure (at least 5), so that a fast turn smears instead of
     // leaving 5 sharp ghosts.
@@ -116,6 +119,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut frame = rendered.to_frame(&config.depth)?;
         if depth_only {
             frame.rgb.fill(surfel_slam::dataset::DEPTH_ONLY_GREY);
+        }
+        if hand > 0.0 {
+            synthetic::hold_hand_in_view(&mut frame, hand, 0.35, i);
         }
         let report = slam.push_frame(&frame, t)?;
         let true_pose = origin * path.pose(t);

@@ -19,6 +19,7 @@ mod bilateral_simd128;
 mod bilateral;
 use bilateral::bilateral_into;
 
+pub mod camera_fixed;
 mod range_domain;
 pub use range_domain::range_knee_m;
 use range_domain::{from_range_domain, to_range_domain};
@@ -61,6 +62,17 @@ pub struct PreprocessConfig {
     pub tap_stride: usize,
     /// Number of pyramid levels (level 0 = full resolution).
     pub levels: usize,
+    /// Near parts of the image that stay put through this many frames in
+    /// a row while the camera moves lose their depth (a hand holding the
+    /// camera: [`camera_fixed`]); 0 = never.
+    #[serde(default = "default_camera_fixed_frames")]
+    pub camera_fixed_frames: u8,
+}
+
+/// [`PreprocessConfig::camera_fixed_frames`]'s default (also for sessions
+/// saved before it existed).
+fn default_camera_fixed_frames() -> u8 {
+    6
 }
 
 /// [`PreprocessConfig::range_noise_factor`]'s default (also for sessions
@@ -79,6 +91,7 @@ impl Default for PreprocessConfig {
             window_radius: 6,
             tap_stride: 2,
             levels: 3,
+            camera_fixed_frames: default_camera_fixed_frames(),
         }
     }
 }

@@ -34,6 +34,7 @@ use crate::fusion::{
 use crate::loop_closure::relocalise::Relocaliser;
 use crate::loop_closure::{GlobalLook, LoopCloser, LoopFrame, LoopOutcome};
 use crate::noise::{depth_is_clean, SensorNoise};
+use crate::preprocess::camera_fixed::CameraFixedMask;
 use crate::preprocess::{half_resolution_into, FramePyramid, PreprocessConfig};
 use crate::track::verify::TrackingChecks;
 use crate::track::{TrackerConfig, TrackerMode, TrackerWorkspace};
@@ -52,6 +53,10 @@ pub struct Pipeline {
     decoded: RgbdFrame,
     /// The pushed frame with `SlamConfig::simulate_noise` applied.
     noisy_frame: RgbdFrame,
+    /// What stays in view as the camera moves (a hand holding it).
+    camera_fixed: CameraFixedMask,
+    /// The pushed frame without depth where `camera_fixed` masks it.
+    masked_frame: RgbdFrame,
     /// `decoded` is the frame of the last push, and that push succeeded.
     decoded_was_pushed: bool,
     scratch: DecodeScratch,
@@ -116,6 +121,8 @@ impl Pipeline {
             half_frame: RgbdFrame::default(),
             decoded: RgbdFrame::default(),
             noisy_frame: RgbdFrame::default(),
+            camera_fixed: CameraFixedMask::default(),
+            masked_frame: RgbdFrame::default(),
             decoded_was_pushed: false,
             scratch: DecodeScratch::default(),
             settings_check: SettingsCheck::default(),
@@ -237,6 +244,7 @@ impl Pipeline {
         self.loop_closer.reset();
         self.decoded_was_pushed = false;
         self.localising = None;
+        self.camera_fixed = CameraFixedMask::default();
     }
 
     /// Processes one decoded frame stamped `timestamp` (seconds or frame
@@ -274,23 +282,31 @@ impl Pipeline {
         let input = self.config.intrinsics;
         frame.expect_size(input.width, input.height)?;
         frame.validate()?;
-        let Some(simulation) = self.config.simulate_noise else {
-            return Ok(self.push_valid(frame, timestamp));
-        };
         // Taken out and put back: the stages borrow the pipeline mutably.
         let mut noisy = std::mem::take(&mut self.noisy_frame);
-        noisy.width = frame.width;
-        noisy.height = frame.height;
-        noisy.rgb.clone_from(&frame.rgb);
-        simulation.apply_into(
-            &frame.depth_m,
-            frame.width,
-            input.fx,
-            u64::from(self.frame_index),
-            &mut noisy.depth_m,
-        );
-        let report = self.push_valid(&noisy, timestamp);
+        let mut masked = std::mem::take(&mut self.masked_frame);
+        let mut frame = frame;
+        if let Some(simulation) = self.config.simulate_noise {
+            noisy.width = frame.width;
+            noisy.height = frame.height;
+            noisy.rgb.clone_from(&frame.rgb);
+            simulation.apply_into(
+                &frame.depth_m,
+                frame.width,
+                input.fx,
+                u64::from(self.frame_index),
+                &mut noisy.depth_m,
+            );
+            frame = &noisy;
+        }
+        let min_frames = self.config.preprocess.camera_fixed_frames;
+        if min_frames > 0 && self.camera_fixed.observe(frame, min_frames) > 0 {
+            self.camera_fixed.apply_into(frame, &mut masked);
+            frame = &masked;
+        }
+        let report = self.push_valid(frame, timestamp);
         self.noisy_frame = noisy;
+        self.masked_frame = masked;
         Ok(report)
     }
 

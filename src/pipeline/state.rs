@@ -10,6 +10,7 @@ use super::{Pipeline, PipelineError, SlamConfig, VerdictCounts};
 use crate::fusion::{DepthTiles, Measured, SurfelMap};
 use crate::loop_closure::ferns::Keyframe;
 use crate::noise::SensorNoise;
+use crate::preprocess::camera_fixed::CameraFixedMask;
 use crate::track::rgb::{PhotometricReference, ReferencePoint};
 use crate::track::TrackerMode;
 use glam::{DAffine3, Vec3};
@@ -78,6 +79,8 @@ pub struct StateView<'a> {
     /// The photometric term's frame memory per level (empty unless the
     /// tracker reads the last frame).
     pub photometric: Vec<&'a [ReferencePoint]>,
+    /// What the mask of things carried with the camera remembers.
+    pub camera_fixed: &'a CameraFixedMask,
 }
 
 /// The pipeline's state, owned ([`Pipeline::from_state`]).
@@ -101,6 +104,8 @@ pub struct PipelineState {
     pub last_fused: Option<LastFusedFrame<Vec<u8>, Vec<Vec3>>>,
     /// The photometric term's frame memory per level.
     pub photometric: Vec<Vec<ReferencePoint>>,
+    /// What the mask of things carried with the camera remembers.
+    pub camera_fixed: CameraFixedMask,
 }
 
 /// Whether the tracker keeps the last frame for its photometric term.
@@ -147,6 +152,7 @@ impl Pipeline {
             keyframes: self.relocaliser.database().keyframes(),
             last_fused,
             photometric,
+            camera_fixed: &self.camera_fixed,
         }
     }
 
@@ -204,6 +210,7 @@ impl Pipeline {
         p.loop_closer.restore_counters(s.loop_counters);
         p.settings_check.depth_checked = s.depth_checked;
         p.configured_noise = s.configured_noise;
+        p.camera_fixed = state.camera_fixed;
         if remembers_frames(&p.config) {
             p.tracker.restore_photometric_memory(state.photometric);
         }

@@ -14,6 +14,7 @@
 //! | `trajectory.txt` | the trajectory, TUM text (for other tools) | `poses.rs` |
 //! | `poses.txt` | the trajectory and the tracked one, exactly | `poses.rs` |
 //! | `last_frame.bin` | what the next frames remember of the last fused one | `frame_memory.rs` |
+//! | `camera_fixed.bin` | the last frame as the mask of things carried with the camera saw it (optional: older sessions start it afresh) | `camera_fixed.rs` |
 //!
 //! Written and read an entry at a time, the surfels a row at a time: no
 //! copy of the map's bytes is held. A file that is cut short, damaged,
@@ -22,6 +23,7 @@
 //! it was.
 
 mod binary;
+mod camera_fixed;
 mod error;
 mod frame_memory;
 mod keyframes;
@@ -52,6 +54,7 @@ const KEYFRAMES: &str = "keyframes.bin";
 const TRAJECTORY: &str = "trajectory.txt";
 const POSES: &str = "poses.txt";
 const LAST_FRAME: &str = "last_frame.bin";
+const CAMERA_FIXED: &str = "camera_fixed.bin";
 
 /// Largest manifest read, bytes.
 const MAX_MANIFEST: u64 = 16 << 20;
@@ -108,6 +111,9 @@ pub fn save<W: Write + Seek>(pipeline: &Pipeline, out: W) -> Result<W, SessionEr
     })?;
     entry(LAST_FRAME, &mut |w| {
         frame_memory::write_frame_memory(w, state.last_fused.as_ref(), &state.photometric)
+    })?;
+    entry(CAMERA_FIXED, &mut |w| {
+        camera_fixed::write_camera_fixed(w, state.camera_fixed)
     })?;
     zip.finish().map_err(|e| failed(&e))
 }
@@ -231,6 +237,12 @@ fn read<R: Read + Seek>(input: R, camera: Option<&Camera>) -> Result<Pipeline, S
     let working = config.working_intrinsics();
     let (last_fused, photometric) =
         frame_memory::read_frame_memory(entry(&mut zip, LAST_FRAME)?, working.pixel_count())?;
+    let input_pixels = config.intrinsics.pixel_count();
+    let camera_fixed = match zip.by_name(CAMERA_FIXED) {
+        Err(zip::result::ZipError::FileNotFound) => Default::default(),
+        Err(e) => return Err(corrupt(CAMERA_FIXED, e.to_string())),
+        Ok(file) => camera_fixed::read_camera_fixed(BufReader::new(file), input_pixels)?,
+    };
     Pipeline::from_state(PipelineState {
         config,
         scalars: manifest.scalars(),
@@ -241,6 +253,7 @@ fn read<R: Read + Seek>(input: R, camera: Option<&Camera>) -> Result<Pipeline, S
         keyframes,
         last_fused,
         photometric,
+        camera_fixed,
     })
     .map_err(|e| SessionError::Corrupt(e.to_string()))
 }

@@ -26,6 +26,7 @@
 //! [`crate::random::SplitMix`] stream seeded per row from `seed`, so a frame depends only on
 //! its arguments (not on the thread count).
 
+mod hand;
 mod loop_path;
 mod map_error;
 mod noise;
@@ -36,6 +37,7 @@ mod swing;
 mod texture;
 mod trajectory;
 
+pub use hand::hold_hand_in_view;
 pub use loop_path::loop_pose;
 pub use map_error::{map_error, MapError};
 pub use noise::{NoiseModel, StructuredLight};
