@@ -9,7 +9,7 @@
 //! degree, and ATE.
 //!
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
-//! [--swing-frames N] [--noisy] [--lidar] [--depth-only] [--hand SHARE] [--no-dead-reckoning]
+//! [--swing-frames N] [--noisy] [--lidar] [--depth-only] [--hand SHARE] [--no-hand-mask] [--no-dead-reckoning]
 //! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--tracker icp|joint|rgb] [--smooth-blur] [--verbose
 //! [--from FRAME]]` (`--verbose`: one line per frame for 50 frames from
 //! `--from`, default 30: verdict, the true turn, the pose's error).
@@ -75,6 +75,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         config.tracker.verify.dead_reckoning_min_inliers,
     );
     config.tracker.verify.dead_reckoning = !args.iter().any(|a| a == "--no-dead-reckoning");
+    if args.iter().any(|a| a == "--no-hand-mask") {
+        config.preprocess.camera_fixed_frames = 0;
+    }
     let tracker: String = arg(&args, "--tracker", String::new());
     if let Some(mode) = surfel_slam::track::TrackerMode::from_name(&tracker) {
         config.tracker.mode = mode;

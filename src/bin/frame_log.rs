@@ -12,7 +12,9 @@
 //! `world_from_camera`, metres), `rpe_cm`, `rpe_deg` (the error of the
 //! motion since the last fused frame; empty without truth for both),
 //! `dead_reckoned` (1 for a lost frame whose pose the sparse estimate
-//! carried on from the frame before, else 0).
+//! carried on from the frame before, else 0), `camera_fixed_pct` (the
+//! percentage of the image whose depth was taken out as something carried
+//! with the camera, a hand holding it).
 
 use anyhow::{Context, Result};
 use glam::DAffine3;
@@ -26,7 +28,7 @@ use crate::MAX_DT;
 
 /// The header row.
 const HEADER: &str = "frame,timestamp,verdict,lost_reason,inliers,residual_mm,conditioning,\
-tx,ty,tz,qx,qy,qz,qw,rpe_cm,rpe_deg,dead_reckoned";
+tx,ty,tz,qx,qy,qz,qw,rpe_cm,rpe_deg,dead_reckoned,camera_fixed_pct";
 
 /// The rows so far, and the previous input frame's pose and truth.
 pub struct FrameLog<'a> {
@@ -92,14 +94,19 @@ impl<'a> FrameLog<'a> {
             }
             None => self.text.push_str(",,,,,,,,,"),
         }
-        let _ = writeln!(self.text, ",{}", u8::from(report.checks.dead_reckoned));
+        let _ = writeln!(
+            self.text,
+            ",{},{:.2}",
+            u8::from(report.checks.dead_reckoned),
+            100.0 * report.camera_fixed_share
+        );
     }
 
     /// Adds the row of a frame that could not be read or was refused.
     pub fn record_unreadable(&mut self, entry: &FrameEntry) {
         let _ = writeln!(
             self.text,
-            "{},{},unreadable,,,,,,,,,,,,,,",
+            "{},{},unreadable,,,,,,,,,,,,,,,",
             entry.index, entry.timestamp
         );
     }

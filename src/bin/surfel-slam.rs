@@ -105,6 +105,10 @@ pub(crate) struct TrackingArgs {
     /// does on a sequence).
     #[arg(long)]
     no_dead_reckoning: bool,
+    /// Track and fuse near parts of the image that stay put while the
+    /// camera moves (a hand holding it), which are otherwise left out.
+    #[arg(long)]
+    no_hand_mask: bool,
     /// Simulate a sensor's noise on the (clean) input depth: kinect-v1
     /// (ICL-NUIM's recipe: jitter, disparity noise, 1/8 px steps).
     #[arg(long, value_parser = simulated_sensor_parser)]
@@ -206,6 +210,9 @@ impl TrackingArgs {
             config.fusion.min_noise_weight = w;
         }
         config.tracker.verify.dead_reckoning = !self.no_dead_reckoning;
+        if self.no_hand_mask {
+            config.preprocess.camera_fixed_frames = 0;
+        }
         config.simulate_noise = self.simulate_noise.map(|sensor| NoiseSimulation {
             sensor,
             seed: self.noise_seed,

@@ -300,11 +300,13 @@ impl Pipeline {
             frame = &noisy;
         }
         let min_frames = self.config.preprocess.camera_fixed_frames;
+        let mut masked_share = 0.0;
         if min_frames > 0 && self.camera_fixed.observe(frame, min_frames) > 0 {
-            self.camera_fixed.apply_into(frame, &mut masked);
+            masked_share = self.camera_fixed.apply_into(frame, &mut masked);
             frame = &masked;
         }
-        let report = self.push_valid(frame, timestamp);
+        let mut report = self.push_valid(frame, timestamp);
+        report.camera_fixed_share = masked_share;
         self.noisy_frame = noisy;
         self.masked_frame = masked;
         Ok(report)
@@ -647,6 +649,7 @@ impl Pipeline {
             global_loop_closures: self.loop_closer.global_closures(),
             loop_outcome,
             settings_warning: None,
+            camera_fixed_share: 0.0,
             timings,
         }
     }

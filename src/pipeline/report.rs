@@ -142,6 +142,10 @@ pub struct FrameReport {
     /// A camera-settings warning first reported with this frame (a depth
     /// scale or layout check; all of them: `Pipeline::settings_warnings`).
     pub settings_warning: Option<SettingsWarning>,
+    /// Share (0-1) of the pushed image whose depth was taken out as
+    /// something carried with the camera, a hand holding it
+    /// ([`crate::preprocess::camera_fixed`]); 0 when nothing was.
+    pub camera_fixed_share: f64,
     /// Stage timings.
     pub timings: StageTimings,
 }

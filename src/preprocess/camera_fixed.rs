@@ -206,22 +206,26 @@ impl CameraFixedMask {
     }
 
     /// Copies `frame` into `out` with the depth of every masked cell's
-    /// pixels set to 0 (no measurement).
-    pub fn apply_into(&self, frame: &RgbdFrame, out: &mut RgbdFrame) {
+    /// pixels set to 0 (no measurement). Returns the share (0-1) of the
+    /// frame's pixels that had depth and lost it.
+    pub fn apply_into(&self, frame: &RgbdFrame, out: &mut RgbdFrame) -> f64 {
         out.width = frame.width;
         out.height = frame.height;
         out.rgb.clone_from(&frame.rgb);
         out.depth_m.clone_from(&frame.depth_m);
+        let mut taken = 0usize;
         for (c, _) in self.masked.iter().enumerate().filter(|(_, &m)| m) {
             let (x0, y0) = ((c % self.cols) * self.step, (c / self.cols) * self.step);
             for y in y0..(y0 + self.step).min(frame.height) {
                 let row = y * frame.width;
                 let (a, b) = (row + x0, row + (x0 + self.step).min(frame.width));
                 if let Some(span) = out.depth_m.get_mut(a..b) {
+                    taken += span.iter().filter(|&&z| z > 0.0).count();
                     span.fill(0.0);
                 }
             }
         }
+        taken as f64 / frame.depth_m.len().max(1) as f64
     }
 
     /// The state a session keeps: grid step, cells across and down, and per

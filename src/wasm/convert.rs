@@ -61,6 +61,8 @@ export interface FrameReport {
   loopDecision: string | null;
   /** A camera setting that looks wrong for the data, first found with this frame (e.g. a depth scale that puts most depths beyond the cut-off); all of them: Slam.settingsWarnings(). null when none. */
   settingsWarning: string | null;
+  /** Share (0-1) of the image whose depth was taken out as something carried with the camera (a hand holding it: near, staying put while the rest of the view moves); 0 when nothing was. */
+  cameraFixedShare: number;
   /** Milliseconds per stage. */
   timings: { decode: number; preprocess: number; track: number; fuse: number; loop: number; predict: number; total: number };
 }
@@ -254,6 +256,7 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
             r.settings_warning
                 .map_or(JsValue::NULL, |w| w.to_string().into()),
         ),
+        ("cameraFixedShare", r.camera_fixed_share.into()),
         ("timings", timings.into()),
     ])
     .into()
