@@ -172,17 +172,7 @@ fn a_session_saved_while_dead_reckoning_continues_exactly_and_a_reset_replays_it
         .windows(2)
         .position(|w| w[0] && w[1])
         .expect("two dead-reckoned frames in a row");
-    let mut first = Pipeline::new(config).unwrap();
-    run(&mut first, &frames[..k], 0);
-    let bytes = session::save(&first, Cursor::new(Vec::new()))
-        .expect("saved")
-        .into_inner();
-    let mut resumed = session::load(Cursor::new(&bytes)).expect("loads");
-    let reports = run(&mut resumed, &frames[k..], k);
-    assert_eq!(reports, straight_reports[k..], "saved after {k} frames");
-    if let Some(d) = Bits::of(&resumed).differences(&expected).into_iter().next() {
-        panic!("saved after {k} frames (mid-loss) and continued: {d}");
-    }
+    let mut resumed = saved_and_continued(&config, &frames, k, &straight_reports, &expected);
     // Reset mid-loss, then the whole sequence again: the same run.
     resumed.reset();
     assert_eq!(
@@ -193,6 +183,29 @@ fn a_session_saved_while_dead_reckoning_continues_exactly_and_a_reset_replays_it
     if let Some(d) = Bits::of(&resumed).differences(&expected).into_iter().next() {
         panic!("replayed after a reset: {d}");
     }
+}
+
+/// A pipeline that ran `frames[..k]`, was saved, loaded and ran the rest;
+/// checked against the uninterrupted run's reports and bits.
+fn saved_and_continued(
+    config: &SlamConfig,
+    frames: &[RgbdFrame],
+    k: usize,
+    straight_reports: &[String],
+    expected: &Bits,
+) -> Pipeline {
+    let mut first = Pipeline::new(config.clone()).unwrap();
+    run(&mut first, &frames[..k], 0);
+    let bytes = session::save(&first, Cursor::new(Vec::new()))
+        .expect("saved")
+        .into_inner();
+    let mut resumed = session::load(Cursor::new(&bytes)).expect("loads");
+    let reports = run(&mut resumed, &frames[k..], k);
+    assert_eq!(reports, straight_reports[k..], "saved after {k} frames");
+    if let Some(d) = Bits::of(&resumed).differences(expected).into_iter().next() {
+        panic!("saved after {k} frames and continued: {d}");
+    }
+    resumed
 }
 
 /// Without colour (a phone scan run natively, `run --depth-only`) there is
@@ -368,7 +381,6 @@ fn a_session_saved_while_a_hand_is_masked_continues_exactly() {
         ..SwingPath::default()
     };
     let (mut frames, _) = frames_along(&config, &path);
-    frames.truncate(40);
     for (i, f) in frames.iter_mut().enumerate() {
         synthetic::hold_hand_in_view(f, 0.3, 0.35, i);
     }
@@ -376,18 +388,17 @@ fn a_session_saved_while_a_hand_is_masked_continues_exactly() {
     let straight_reports = run(&mut straight, &frames, 0);
     let expected = Bits::of(&straight);
     // Saved while the hand's cells count towards the mask (frame 3) and
-    // while it is masked (frame 20).
-    for k in [3, 20] {
-        let mut first = Pipeline::new(config.clone()).unwrap();
-        run(&mut first, &frames[..k], 0);
-        let bytes = session::save(&first, Cursor::new(Vec::new()))
-            .expect("saved")
-            .into_inner();
-        let mut resumed = session::load(Cursor::new(&bytes)).expect("loads");
-        let reports = run(&mut resumed, &frames[k..], k);
-        assert_eq!(reports, straight_reports[k..], "saved after {k} frames");
-        if let Some(d) = Bits::of(&resumed).differences(&expected).into_iter().next() {
-            panic!("saved after {k} frames and continued: {d}");
-        }
+    // while it is masked (frame 20), each run on past every cleanup to
+    // frame 180; then reset and replayed whole.
+    saved_and_continued(&config, &frames, 3, &straight_reports, &expected);
+    let mut resumed = saved_and_continued(&config, &frames, 20, &straight_reports, &expected);
+    resumed.reset();
+    assert_eq!(
+        run(&mut resumed, &frames, 0),
+        straight_reports,
+        "replayed after a reset"
+    );
+    if let Some(d) = Bits::of(&resumed).differences(&expected).into_iter().next() {
+        panic!("replayed after a reset: {d}");
     }
 }

@@ -67,6 +67,22 @@ pub struct CameraFixedMask {
     masked: Vec<bool>,
     /// How many of them.
     masked_count: usize,
+    /// Per-frame buffers, reused.
+    scratch: Scratch,
+}
+
+/// Buffers one frame's decision fills, kept between frames so that a
+/// frame allocates nothing; not part of the state.
+#[derive(Debug, Clone, Default, PartialEq)]
+struct Scratch {
+    /// Cells whose depth or grey changed since the last frame.
+    changed: Vec<bool>,
+    /// The part each cell was flood-filled into (its seed), or `usize::MAX`.
+    part: Vec<usize>,
+    /// Cells of a part that is masked.
+    fixed: Vec<bool>,
+    stack: Vec<usize>,
+    members: Vec<usize>,
 }
 
 impl CameraFixedMask {
@@ -77,16 +93,8 @@ impl CameraFixedMask {
         let step = frame.width.div_ceil(CELLS_ACROSS).max(1);
         let (cols, rows) = (frame.width.div_ceil(step), frame.height.div_ceil(step));
         if (step, cols, rows) != (self.step, self.cols, self.rows) {
-            *self = Self {
-                step,
-                cols,
-                rows,
-                depth_m: vec![0.0; cols * rows],
-                grey: vec![0; cols * rows],
-                still: vec![0; cols * rows],
-                masked: vec![false; cols * rows],
-                masked_count: 0,
-            };
+            let n = cols * rows;
+            *self = Self::with(step, cols, rows, vec![0.0; n], vec![0; n], vec![0; n]);
         }
         let sample = |c: usize| {
             let (x, y) = ((c % cols) * step, (c / cols) * step);
@@ -96,7 +104,9 @@ impl CameraFixedMask {
             let grey = (u16::from(rgb[0]) + u16::from(rgb[1]) + u16::from(rgb[2])) / 3;
             (if z.is_finite() && z > 0.0 { z } else { 0.0 }, grey as u8)
         };
-        let mut changed = vec![false; cols * rows];
+        let mut changed = std::mem::take(&mut self.scratch.changed);
+        changed.clear();
+        changed.resize(cols * rows, false);
         let mut both = 0usize;
         let mut moved = 0usize;
         for (c, change) in changed.iter_mut().enumerate() {
@@ -119,6 +129,7 @@ impl CameraFixedMask {
                 self.still[c] = self.still[c].saturating_add(1);
             }
         }
+        self.scratch.changed = changed;
         let count = self.mask_separated_still_parts(min_frames);
         self.masked_count = count;
         count
@@ -149,10 +160,14 @@ impl CameraFixedMask {
                 (y + 1 < rows).then(|| c + cols),
             ]
         };
-        let mut part = vec![usize::MAX; n];
-        let mut fixed = vec![false; n];
-        let mut stack = Vec::new();
-        let mut members = Vec::new();
+        let mut part = std::mem::take(&mut self.scratch.part);
+        let mut fixed = std::mem::take(&mut self.scratch.fixed);
+        let mut stack = std::mem::take(&mut self.scratch.stack);
+        let mut members = std::mem::take(&mut self.scratch.members);
+        part.clear();
+        part.resize(n, usize::MAX);
+        fixed.clear();
+        fixed.resize(n, false);
         for seed in 0..n {
             if part[seed] != usize::MAX || !candidate(seed) {
                 continue;
@@ -196,6 +211,10 @@ impl CameraFixedMask {
             self.masked[c] = by_fixed && self.depth_m[c] > 0.0 && self.depth_m[c] < NEAR_M;
             count += usize::from(self.masked[c]);
         }
+        self.scratch.part = part;
+        self.scratch.fixed = fixed;
+        self.scratch.stack = stack;
+        self.scratch.members = members;
         count
     }
 
@@ -258,16 +277,29 @@ impl CameraFixedMask {
             && grey.len() == n
             && still.len() == n
             && depth_m.iter().all(|z| z.is_finite() && *z >= 0.0);
-        fits.then(|| Self {
+        fits.then(|| Self::with(step, cols, rows, depth_m, grey, still))
+    }
+
+    /// A state with the given memory, nothing masked.
+    fn with(
+        step: usize,
+        cols: usize,
+        rows: usize,
+        depth_m: Vec<f32>,
+        grey: Vec<u8>,
+        still: Vec<u8>,
+    ) -> Self {
+        Self {
             step,
             cols,
             rows,
+            masked: vec![false; depth_m.len()],
             depth_m,
             grey,
             still,
-            masked: vec![false; n],
             masked_count: 0,
-        })
+            scratch: Scratch::default(),
+        }
     }
 }
 
