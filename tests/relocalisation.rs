@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::synthetic_config;
+use common::{shared_dataset, synthetic_config};
 use glam::{DAffine3, DVec3};
 use surfel_slam::dataset::{read_frame, Sequence};
 use surfel_slam::eval::ate;
@@ -278,27 +278,79 @@ fn garbage(k: &Intrinsics, seed: u64) -> surfel_slam::RgbdFrame {
 
 #[test]
 fn a_lost_camera_that_jumps_to_a_mapped_place_is_relocalised() {
+    lost_camera_jumps_to_a_mapped_place(false, 110, 20);
+}
+
+/// The same on depth alone (a Stray Scanner scan without `rgb/`): grey
+/// colour, ICP.
+#[test]
+fn a_lost_camera_without_colour_that_jumps_to_a_mapped_place_is_relocalised() {
+    lost_camera_jumps_to_a_mapped_place(true, 110, 20);
+}
+
+/// Depth alone makes keyframes too: TUM fr3/teddy with its colour and,
+/// beside it, with a grey image (as a depth-only sequence runs). With one
+/// depth test a fern (the colour tests see one grey), frame 0 stayed the
+/// only keyframe, and a lost camera could be placed only where it started.
+#[test]
+fn frames_without_colour_make_keyframes_too() {
+    let Some(dir) = shared_dataset("tum_fr3_teddy") else {
+        return;
+    };
+    let sequence = Sequence::open(&dir).expect("sequence opens");
+    let config = SlamConfig::from_preset(sequence.preset);
+    let mut with_colour = Pipeline::new(config.clone()).expect("config");
+    let mut without = Pipeline::new(config.clone()).expect("config");
+    for entry in &sequence.frames {
+        let mut frame = read_frame(&dir, entry, &config.depth).expect("frame decodes");
+        with_colour
+            .push_frame(&frame, entry.timestamp)
+            .expect("push");
+        frame.rgb.fill(surfel_slam::dataset::DEPTH_ONLY_GREY);
+        without.push_frame(&frame, entry.timestamp).expect("push");
+    }
+    let (with_colour, without) = (
+        with_colour.state().keyframes.len(),
+        without.state().keyframes.len(),
+    );
+    assert!(
+        without >= 4 && 3 * without >= with_colour,
+        "{without} keyframes without colour, {with_colour} with"
+    );
+}
+
+/// Maps frames `0..mapped` of the path, then five frames of noise, then
+/// moves on beside the path from frame `back_to`.
+fn lost_camera_jumps_to_a_mapped_place(depth_only: bool, mapped: usize, back_to: usize) {
     let k = small();
-    let config = synthetic_config(k);
+    let mut config = synthetic_config(k);
+    if depth_only {
+        config.tracker.mode = surfel_slam::track::TrackerMode::Icp;
+    }
     let scene = Scene::room();
     let mut slam = Pipeline::new(config.clone()).expect("config");
     let world_from_scene = synthetic::trajectory_pose(0).inverse();
     // Mapping along the path, five frames of noise (the camera covered or
-    // shaken), then the camera is 1.1 m and 57 degrees away, back where it
-    // was at frame 20, and moves on 5 cm / 4 degrees beside its old path.
-    let mut views: Vec<Option<DAffine3>> = (0..110)
+    // shaken), then the camera is far away (from frame 110 to 20: 1.1 m and
+    // 57 degrees), back where it was, and moves on 5 cm / 4 degrees beside
+    // its old path.
+    let mut views: Vec<Option<DAffine3>> = (0..mapped)
         .map(|i| Some(synthetic::trajectory_pose(i)))
         .collect();
     views.extend([None; 5]);
-    views.extend((20..50).map(|i| Some(off_path(synthetic::trajectory_pose(i)))));
+    let jump = views.len();
+    views.extend((back_to..back_to + 30).map(|i| Some(off_path(synthetic::trajectory_pose(i)))));
     let mut relocalised = None;
     for (i, view) in views.iter().enumerate() {
-        let frame = match view {
+        let mut frame = match view {
             Some(pose) => synthetic::render(&scene, &k, pose, &noise(), i as u64)
                 .to_frame(&config.depth)
                 .expect("frame"),
             None => garbage(&k, i as u64),
         };
+        if depth_only {
+            frame.rgb.fill(surfel_slam::dataset::DEPTH_ONLY_GREY);
+        }
         let report = slam.push_frame(&frame, i as f64).expect("push");
         if !report.verdict.is_fused() {
             continue;
@@ -315,7 +367,7 @@ fn a_lost_camera_that_jumps_to_a_mapped_place_is_relocalised() {
             report.verdict.name(),
             dr.to_degrees()
         );
-        if i >= 115 && relocalised.is_none() {
+        if i >= jump && relocalised.is_none() {
             relocalised = Some((i, dt, dr.to_degrees(), report.checks.relocalised_from));
         }
     }
@@ -325,7 +377,7 @@ fn a_lost_camera_that_jumps_to_a_mapped_place_is_relocalised() {
         "frame {i} relocalised {dt:.4} m {dr:.2} deg from the truth"
     );
     assert!(keyframe.is_some(), "frame {i} placed without a keyframe");
-    assert!(i <= 117, "relocalised only at frame {i}");
+    assert!(i <= jump + 2, "relocalised only at frame {i}");
     let counts = slam.counts();
     assert!(counts.lost <= 8, "{} frames lost", counts.lost);
 }

@@ -38,6 +38,10 @@ export class Stats {
     this.lastVerdict = '';
     this.lastLostReason = null;
     this.framesRelocalised = 0;
+    // Frames whose near parts were masked as carried with the camera (a
+    // hand in view), and the share of the image masked in the last frame.
+    this.framesMasked = 0;
+    this.maskedShare = 0;
     this.lastRelocalised = null; // {frame, keyframe}: the latest frame placed by relocalisation
     this.loopClosures = null; // closures so far (null: the module reports none)
     this.globalLoopClosures = 0; // of those, closed by the global check
@@ -65,6 +69,8 @@ export class Stats {
     else this.framesTracked++;
     this.lastVerdict = r.verdict;
     this.lastLostReason = r.lostReason ?? null;
+    this.maskedShare = Number.isFinite(r.cameraFixedShare) ? r.cameraFixedShare : 0;
+    if (this.maskedShare > 0) this.framesMasked++;
     if (Number.isFinite(r.relocalisedFrom)) {
       this.framesRelocalised++;
       this.lastRelocalised = { frame: msg.index, keyframe: r.relocalisedFrom };
@@ -157,6 +163,12 @@ export class Stats {
           : `${this.loopClosures}` + (this.globalLoopClosures > 0 ? ` (${this.globalLoopClosures} global)` : ''),
       ],
       ...(this.loopClosures === null ? [] : [['last loop decision', this.lastLoopDecision ?? '–']]),
+      [
+        'masked as carried with the camera',
+        this.framesMasked > 0
+          ? `${this.framesMasked} frame${this.framesMasked === 1 ? '' : 's'} (this one: ${(100 * this.maskedShare).toFixed(1)} % of the image)`
+          : '0 frames',
+      ],
       ['failed (errors)', `${this.framesFailed}`],
       ['last verdict', this.lastVerdict ? this.lastVerdict + (this.lastLostReason ? ` (${this.lastLostReason})` : '') : '–'],
       ['surfels', this.surfels.toLocaleString('en-US')],

@@ -26,7 +26,8 @@ test('relocalised frames, loop closures and the loop stage time reach the panel 
         const loop = index >= 6; // a module with the loop stage from frame 6 on
         const timings = { decode: 1, preprocess: 1, track: 2, fuse: 3, predict: 1, total: 8, ...(loop ? { loop: 4 } : {}) };
         const loopDecision = index === 6 ? 'local refused: free-space (frame 6)' : null;
-        const result = { verdict, relocalisedFrom, timings, surfels: 100, ...(loop ? { loopClosures: index === 7 ? 1 : 0, globalLoopClosures: index === 7 ? 1 : 0, loopDecision } : {}) };
+        const cameraFixedShare = index === 5 || index === 6 ? 0.125 : 0; // a hand in view on frames 5 and 6
+        const result = { verdict, relocalisedFrom, timings, surfels: 100, cameraFixedShare, ...(loop ? { loopClosures: index === 7 ? 1 : 0, globalLoopClosures: index === 7 ? 1 : 0, loopDecision } : {}) };
         stats.onFrame({ index, frameCount: verdicts.length, result, surfels: { count: 100, start: 0, end: 0 }, timing: { wall: 9 } });
         plots.add(index, timings, 100, 0.01, { verdict, relocalised: relocalisedFrom !== null, loopClosed: index === 7 });
         if (index === 5) withoutLoop = rows();
@@ -54,6 +55,8 @@ test('relocalised frames, loop closures and the loop stage time reach the panel 
     assert.equal(r.withoutLoop['loop closures'], '–', 'no count before the module reports one');
     assert.equal(r.withoutLoop['loop'], undefined, 'no loop stage row before the module reports one');
     assert.equal(r.rows['tracked / held / lost / recovered'], '4 / 1 / 2 / 1');
+    assert.equal(r.withoutLoop['masked as carried with the camera'], '1 frame (this one: 12.5 % of the image)');
+    assert.equal(r.rows['masked as carried with the camera'], '2 frames (this one: 0.0 % of the image)', 'the count stays when the mask ends');
     assert.deepEqual(r.marks, [
       { frame: 4, kind: 'relocalised' },
       { frame: 7, kind: 'loop' },
