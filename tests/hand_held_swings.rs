@@ -174,15 +174,7 @@ fn a_session_saved_while_dead_reckoning_continues_exactly_and_a_reset_replays_it
         .expect("two dead-reckoned frames in a row");
     let mut resumed = saved_and_continued(&config, &frames, k, &straight_reports, &expected);
     // Reset mid-loss, then the whole sequence again: the same run.
-    resumed.reset();
-    assert_eq!(
-        run(&mut resumed, &frames, 0),
-        straight_reports,
-        "replayed after a reset"
-    );
-    if let Some(d) = Bits::of(&resumed).differences(&expected).into_iter().next() {
-        panic!("replayed after a reset: {d}");
-    }
+    replayed_after_reset(&mut resumed, &frames, &straight_reports, &expected);
 }
 
 /// A pipeline that ran `frames[..k]`, was saved, loaded and ran the rest;
@@ -392,13 +384,24 @@ fn a_session_saved_while_a_hand_is_masked_continues_exactly() {
     // frame 180; then reset and replayed whole.
     saved_and_continued(&config, &frames, 3, &straight_reports, &expected);
     let mut resumed = saved_and_continued(&config, &frames, 20, &straight_reports, &expected);
-    resumed.reset();
+    replayed_after_reset(&mut resumed, &frames, &straight_reports, &expected);
+}
+
+/// `slam` reset, then every frame played again: the same reports and the
+/// same bits as the uninterrupted run.
+fn replayed_after_reset(
+    slam: &mut Pipeline,
+    frames: &[RgbdFrame],
+    straight_reports: &[String],
+    expected: &Bits,
+) {
+    slam.reset();
     assert_eq!(
-        run(&mut resumed, &frames, 0),
+        run(slam, frames, 0),
         straight_reports,
         "replayed after a reset"
     );
-    if let Some(d) = Bits::of(&resumed).differences(&expected).into_iter().next() {
+    if let Some(d) = Bits::of(slam).differences(expected).into_iter().next() {
         panic!("replayed after a reset: {d}");
     }
 }
