@@ -193,7 +193,7 @@ fn stages(c: &mut Criterion) {
                     &pyramid,
                     &k,
                     &f.pose,
-                    MAP_FRAMES as u32,
+                    (MAP_FRAMES as u32, fusion.active_at(MAP_FRAMES as u32)),
                     &fusion,
                     far,
                 );

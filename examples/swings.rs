@@ -177,12 +177,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let estimate = slam.trajectory();
     let result = ate(estimate, &truth, 0.01)?;
     println!(
-        "{frames} frames, swings {:.0} deg in {:.0} frames: lost {} (longest {longest}), held {}, recovered {}, tracked-but-off {off}, fused >10 deg off {fused_far}, ATE {:.3} cm ({} poses)",
+        "{frames} frames, swings {:.0} deg in {:.0} frames: lost {} (longest {longest}), held {}, recovered {}, restarted {}, tracked-but-off {off}, fused >10 deg off {fused_far}, ATE {:.3} cm ({} poses)",
         path.amplitude_deg,
         path.swing_frames,
         count(|v| matches!(v, Verdict::Lost(_))),
         count(|v| matches!(v, Verdict::Held)),
         count(|v| matches!(v, Verdict::Recovered)),
+        count(|v| matches!(v, Verdict::Restarted)),
         100.0 * result.rmse_m,
         result.pairs,
     );
@@ -192,6 +193,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Verdict::Lost(_) => 'L',
             Verdict::Held => 'h',
             Verdict::Recovered => 'R',
+            Verdict::Restarted => 'S',
             _ => '.',
         })
         .collect();

@@ -17,7 +17,8 @@ export const STAGE_COLOURS = {
 /**
  * Verdict strip colours, least to most alarming; 'held' is fused with some
  * directions held at the motion prior, 'relocalised' a recovered frame
- * placed from a keyframe.
+ * placed from a keyframe, 'restarted' a frame that began a new segment of
+ * the map after a long loss.
  */
 export const VERDICT_COLOURS = {
   tracked: '#2f8f5b',
@@ -25,6 +26,7 @@ export const VERDICT_COLOURS = {
   held: '#b5d33d',
   recovered: '#e0b23a',
   relocalised: '#3fc8ff',
+  restarted: '#a45cf0',
   lost: '#e5484d',
 };
 const VERDICT_CODES = Object.keys(VERDICT_COLOURS);

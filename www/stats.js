@@ -29,6 +29,7 @@ export class Stats {
     this.framesLost = 0;
     this.framesRecovered = 0;
     this.framesHeld = 0;
+    this.framesRestarted = 0; // lost long, mapped on in a new segment
     this.framesFailed = 0;
     this.surfels = 0;
     this.surfelSlots = 0;
@@ -66,6 +67,7 @@ export class Stats {
     if (r.verdict === 'lost') this.framesLost++;
     else if (r.verdict === 'recovered') this.framesRecovered++;
     else if (r.verdict === 'held') this.framesHeld++;
+    else if (r.verdict === 'restarted') this.framesRestarted++;
     else this.framesTracked++;
     this.lastVerdict = r.verdict;
     this.lastLostReason = r.lostReason ?? null;
@@ -147,8 +149,8 @@ export class Stats {
       ['frame', this.frameIndex >= 0 ? `${this.frameIndex + 1} / ${this.frameCount}` : '–'],
       ['processed', `${this.framesProcessed}`],
       [
-        'tracked / held / lost / recovered',
-        `${this.framesTracked} / ${this.framesHeld} / ${this.framesLost} / ${this.framesRecovered}`,
+        'tracked / held / lost / recovered / restarted',
+        `${this.framesTracked} / ${this.framesHeld} / ${this.framesLost} / ${this.framesRecovered} / ${this.framesRestarted}`,
       ],
       [
         'relocalised',

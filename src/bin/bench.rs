@@ -123,6 +123,7 @@ struct Counts {
     lost: usize,
     recovered: usize,
     held: usize,
+    restarted: usize,
     failed: usize,
 }
 
@@ -144,6 +145,7 @@ fn play(
                 Verdict::Lost(_) => counts.lost += 1,
                 Verdict::Recovered => counts.recovered += 1,
                 Verdict::Held => counts.held += 1,
+                Verdict::Restarted => counts.restarted += 1,
                 _ => {}
             }
             Some((
@@ -299,11 +301,12 @@ fn print_run(
         lost,
         recovered,
         held,
+        restarted,
         failed,
     } = recording.counts;
     let size = slam.config().intrinsics;
     println!(
-        "{}: {} frames at {}x{}, {lost} lost, {recovered} recovered, {held} held, {failed} unreadable, {} surfels, {} rayon threads",
+        "{}: {} frames at {}x{}, {lost} lost, {recovered} recovered, {held} held, {restarted} restarted, {failed} unreadable, {} surfels, {} rayon threads",
         args.dataset.display(),
         total,
         size.width,

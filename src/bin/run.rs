@@ -457,6 +457,12 @@ fn report_verdict(
                 entry.index, entry.timestamp
             );
         }),
+        Verdict::Restarted => bar.suspend(|| {
+            eprintln!(
+                "frame {} ({}) restarted: lost for {streak} frames, mapping goes on from the last placed pose in a new segment (the map so far is kept, not tracked against until the segment is joined to it)",
+                entry.index, entry.timestamp,
+            );
+        }),
         Verdict::Recovered => bar.suspend(|| {
             let why = if streak == 0 {
                 "the normal tracker failed".to_owned()
@@ -469,6 +475,22 @@ fn report_verdict(
             );
         }),
         _ => {}
+    }
+    if let Some(joined) = report.loop_outcome.joined {
+        bar.suspend(|| {
+            let from = joined.keyframe_frame.map_or_else(
+                || "from where the camera was lost".to_owned(),
+                |k| format!("by the keyframe of frame {k}"),
+            );
+            let since = report.index.saturating_sub(joined.segment_start);
+            eprintln!(
+                "frame {} ({}) joined the segment restarted {since} frame(s) before to the map before it, {from}: moved {:.1} cm, {:.1} deg",
+                entry.index,
+                entry.timestamp,
+                joined.correction.0 * 100.0,
+                joined.correction.1
+            );
+        });
     }
 }
 
@@ -535,13 +557,14 @@ fn print_summary(
         n => format!(", {n} camera-settings warning(s) (see above)"),
     };
     println!(
-        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {failed} unreadable, {} loop closures ({} global), {} surfels, {accuracy}{odometry}, {mean:.1} ms/frame (median {median:.1}){warnings}",
+        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {} restarted, {failed} unreadable, {} loop closures ({} global), {} surfels, {accuracy}{odometry}, {mean:.1} ms/frame (median {median:.1}){warnings}",
         args.dataset.display(),
         frames,
         counts.tracked,
         counts.lost,
         counts.recovered,
         counts.held,
+        counts.restarted,
         slam.loop_closures(),
         slam.global_loop_closures(),
         slam.map().live_len(),

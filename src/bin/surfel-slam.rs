@@ -105,6 +105,11 @@ pub(crate) struct TrackingArgs {
     /// does on a sequence).
     #[arg(long)]
     no_dead_reckoning: bool,
+    /// After this many frames lost in a row, map on from the last placed
+    /// pose in a new segment, joined to the map so far once a frame is
+    /// placed in it (0: stay lost until re-acquired).
+    #[arg(long, default_value_t = surfel_slam::pipeline::DEFAULT_RESTART_AFTER_LOST)]
+    restart_after_lost: u32,
     /// Track and fuse near parts of the image that stay put while the
     /// camera moves (a hand holding it), which are otherwise left out.
     #[arg(long)]
@@ -210,6 +215,7 @@ impl TrackingArgs {
             config.fusion.min_noise_weight = w;
         }
         config.tracker.verify.dead_reckoning = !self.no_dead_reckoning;
+        config.restart_after_lost = self.restart_after_lost;
         if self.no_hand_mask {
             config.preprocess.camera_fixed_frames = 0;
         }

@@ -114,9 +114,15 @@ fn from_key(key: u64) -> Option<(f32, usize)> {
 /// lies on (see the module documentation), which takes its `last_seen`.
 /// Whether the copies are offset as a whole is judged against the inactive
 /// surfels alone, the surfaces the loop checks register against.
+/// Surfels last seen before `active_from` are inactive
+/// ([`FusionConfig::active_at`]'s start, or a later restart's).
 /// Returns how many were merged (marked absorbed, removed at the next
 /// cleanup).
-pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usize {
+pub fn merge_copies(
+    map: &mut SurfelMap,
+    config: &FusionConfig,
+    (now, active_from): (u32, u32),
+) -> usize {
     let delay = config.merge_copies_after_frames;
     if delay == 0 || now < delay {
         return 0;
@@ -126,7 +132,6 @@ pub fn merge_copies(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usi
     let young_to = now - delay;
     let young_from = young_to
         .saturating_sub(3 * config.cleanup_interval_frames.max(1) + config.unstable_max_age);
-    let active_from = config.active_at(now).start;
     let earlier_visit_before = young_from.saturating_sub(config.active_window_frames);
     let stable = config.stable_confidence;
     let n = map.common_len();
@@ -337,6 +342,11 @@ impl CellFilter {
 mod tests {
     use super::*;
 
+    /// [`merge_copies`] at frame `now`, the active window's surfels active.
+    fn merge_due(map: &mut SurfelMap, config: &FusionConfig, now: u32) -> usize {
+        merge_copies(map, config, (now, config.active_at(now).start))
+    }
+
     /// A cleanup frame at which copies created at frame 300 are due.
     fn due(config: &FusionConfig) -> u32 {
         300 + config.merge_copies_after_frames + config.cleanup_interval_frames
@@ -368,7 +378,7 @@ mod tests {
         let config = FusionConfig::default();
         let now = due(&config);
         let mut map = old_and_copy(Vec3::new(0.004, 0.0, 0.003), Vec3::Z);
-        assert_eq!(merge_copies(&mut map, &config, now), 1);
+        assert_eq!(merge_due(&mut map, &config, now), 1);
         assert!(map.confidences()[1] < 0.0, "the copy is absorbed");
         assert_eq!(map.last_seen()[0], 300, "the old surfel is active again");
         // Its geometry stays where it was.
@@ -382,15 +392,11 @@ mod tests {
         // An old surfel of radius 1.8 cm; copies 1.5 cm from its centre.
         let with_radius = |offset: Vec3| old_of_radius_and_copy(0.018, offset, Vec3::Z);
         let mut beside = with_radius(Vec3::new(0.012, 0.009, 0.002));
-        assert_eq!(merge_copies(&mut beside, &config, now), 1, "on the disk");
+        assert_eq!(merge_due(&mut beside, &config, now), 1, "on the disk");
         let mut above = with_radius(Vec3::new(0.009, 0.0, 0.012));
-        assert_eq!(merge_copies(&mut above, &config, now), 0, "off the plane");
+        assert_eq!(merge_due(&mut above, &config, now), 0, "off the plane");
         let mut beyond = with_radius(Vec3::new(0.019, 0.0, 0.0));
-        assert_eq!(
-            merge_copies(&mut beyond, &config, now),
-            0,
-            "beyond the radius"
-        );
+        assert_eq!(merge_due(&mut beyond, &config, now), 0, "beyond the radius");
     }
 
     /// Old surfels (frame 0) on a floor (normal z) and a wall (normal x), 9 x
@@ -435,7 +441,7 @@ mod tests {
         let scatter = |i: usize| if i % 2 == 0 { 0.003 } else { -0.003 };
         let (mut noisy, _) = floor_and_wall_with_copies(Vec3::ZERO, scatter);
         assert_eq!(
-            merge_copies(&mut noisy, &config, now),
+            merge_due(&mut noisy, &config, now),
             128,
             "all on the old disks"
         );
@@ -444,13 +450,13 @@ mod tests {
         // of an old centre.
         let (mut drifted, _) = floor_and_wall_with_copies(Vec3::new(0.006, 0.0, 0.006), |_| 0.0);
         assert_eq!(
-            merge_copies(&mut drifted, &config, now),
+            merge_due(&mut drifted, &config, now),
             0,
             "left for the loop checks"
         );
         // A drift of 3 mm is within what noise leaves: merged.
         let (mut small, _) = floor_and_wall_with_copies(Vec3::new(0.003, 0.0, 0.0), |_| 0.0);
-        assert_eq!(merge_copies(&mut small, &config, now), 128);
+        assert_eq!(merge_due(&mut small, &config, now), 128);
     }
 
     #[test]
@@ -464,7 +470,7 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap();
-            let merged = pool.install(|| merge_copies(&mut map, &config, now));
+            let merged = pool.install(|| merge_due(&mut map, &config, now));
             (merged, map.last_seen().to_vec(), map.confidences().to_vec())
         };
         let one = on_threads(1);
@@ -500,7 +506,7 @@ mod tests {
         // Made at frame 0 and woken at 250 by the return: an earlier visit's.
         let mut woken = old_and_copy(Vec3::new(0.004, 0.0, 0.003), Vec3::Z);
         woken.touch(0, 250);
-        assert_eq!(merge_copies(&mut woken, &config, now), 1);
+        assert_eq!(merge_due(&mut woken, &config, now), 1);
         assert!(woken.confidences()[1] < 0.0, "the copy is absorbed");
         // Made at frame 200 and seen since: this visit's, fusion's to merge
         // with. An inactive surfel a metre away gives the cleanup work.
@@ -515,11 +521,11 @@ mod tests {
             20.0,
             300,
         );
-        assert_eq!(merge_copies(&mut this_visit, &config, now), 0);
+        assert_eq!(merge_due(&mut this_visit, &config, now), 0);
         // The same surfel made at frame 0 is an earlier visit's.
         this_visit.push(Vec3::new(0.0, 0.0, 2.0), Vec3::Z, [0; 4], 0.005, 20.0, 0);
         this_visit.touch(3, 250);
-        assert_eq!(merge_copies(&mut this_visit, &config, now), 1);
+        assert_eq!(merge_due(&mut this_visit, &config, now), 1);
         assert_eq!(
             this_visit.last_seen()[3],
             300,
@@ -532,17 +538,17 @@ mod tests {
         let config = FusionConfig::default();
         let now = due(&config);
         let mut far = old_and_copy(Vec3::new(0.02, 0.0, 0.0), Vec3::Z);
-        assert_eq!(merge_copies(&mut far, &config, now), 0);
+        assert_eq!(merge_due(&mut far, &config, now), 0);
         let mut turned = old_and_copy(Vec3::ZERO, Vec3::X);
-        assert_eq!(merge_copies(&mut turned, &config, now), 0);
+        assert_eq!(merge_due(&mut turned, &config, now), 0);
         let mut early = old_and_copy(Vec3::ZERO, Vec3::Z);
-        assert_eq!(merge_copies(&mut early, &config, 310), 0);
+        assert_eq!(merge_due(&mut early, &config, 310), 0);
         let off = FusionConfig {
             merge_copies_after_frames: 0,
             ..config
         };
         let mut never = old_and_copy(Vec3::ZERO, Vec3::Z);
-        assert_eq!(merge_copies(&mut never, &off, now), 0);
+        assert_eq!(merge_due(&mut never, &off, now), 0);
     }
 
     #[test]
@@ -563,7 +569,7 @@ mod tests {
             20.0,
             300,
         );
-        assert_eq!(merge_copies(&mut map, &config, now), 1);
+        assert_eq!(merge_due(&mut map, &config, now), 1);
         assert!(map.confidences()[1] < 0.0, "the copy is absorbed");
         assert_eq!(map.positions()[0], old);
     }

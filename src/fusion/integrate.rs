@@ -211,7 +211,9 @@ impl Integrator {
     }
 
     /// Fuses the frame in `pyramid` seen from `world_from_camera` into `map`
-    /// at index `frame`; `far_m` is the farthest depth the sensor measures.
+    /// at index `frame`, merging into the surfels whose `last_seen` is in
+    /// `active` ([`FusionConfig::active_at`] unless the map was restarted);
+    /// `far_m` is the farthest depth the sensor measures.
     ///
     /// Phases, in order (private methods, named for searching):
     /// `reset_frame`, `cull`, `associate`, `weigh`, `merge_winners`,
@@ -223,7 +225,7 @@ impl Integrator {
         pyramid: &FramePyramid,
         k: &Intrinsics,
         world_from_camera: &DAffine3,
-        frame: u32,
+        (frame, active): (u32, Range<u32>),
         config: &FusionConfig,
         far_m: f32,
     ) -> FusionStats {
@@ -239,7 +241,7 @@ impl Integrator {
             camera_from_world: RigidF32::from_affine(&world_from_camera.inverse()),
             world_from_camera: RigidF32::from_affine(world_from_camera),
             frame,
-            active: config.active_at(frame),
+            active,
         };
         self.reset_frame(&view);
         self.cull(map, &view, config, far_m);

@@ -539,6 +539,36 @@ impl SurfelMap {
         result
     }
 
+    /// Moves the surfels first seen at frame `created_from` or later by the
+    /// rigid `transform` (world to world, metres), centres and normals; the
+    /// others stay. As after [`Self::warp`], the whole map counts as
+    /// changed and every block box is rebuilt.
+    pub fn move_created_since(&mut self, created_from: u32, transform: &glam::DAffine3) {
+        let rotation = glam::Mat3::from_cols(
+            transform.matrix3.x_axis.as_vec3(),
+            transform.matrix3.y_axis.as_vec3(),
+            transform.matrix3.z_axis.as_vec3(),
+        );
+        let translation = transform.translation.as_vec3();
+        let created = self.first_seen.iter().map(|&t| t >= created_from);
+        for ((p, n), moved) in self
+            .positions
+            .iter_mut()
+            .zip(&mut self.normals)
+            .zip(created)
+        {
+            if moved {
+                *p = rotation * *p + translation;
+                *n = rotation * *n;
+            }
+        }
+        if let Some(last) = self.len().checked_sub(1) {
+            self.mark_changed(0);
+            self.mark_changed(last);
+        }
+        self.rebuild_bounds_from(0);
+    }
+
     /// Recomputes the chunk boxes from the chunk holding surfel `first` on.
     pub(in crate::fusion) fn rebuild_bounds_from(&mut self, first: usize) {
         self.bounds

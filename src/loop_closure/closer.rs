@@ -63,6 +63,24 @@ pub struct LoopOutcome {
     /// A verified match with a place seen long ago; `closed` (here and in
     /// the summary) when the map was bent by it.
     pub global: Option<GlobalClosure>,
+    /// The map's segment since a restart after a long loss was moved, as
+    /// a whole, onto the map before it (`closed` is then set too).
+    pub joined: Option<SegmentJoin>,
+}
+
+/// A segment of the map, begun by a restart after a long loss
+/// (`Verdict::Restarted`), moved rigidly onto the map before it when a
+/// frame of the segment was relocalised against that map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SegmentJoin {
+    /// The segment's first frame.
+    pub segment_start: u32,
+    /// Frame index of the keyframe the frame was placed from; `None`
+    /// when placed from where the camera was lost (the segment's first
+    /// frame's pose, before the loss).
+    pub keyframe_frame: Option<u32>,
+    /// How far the frame moved: translation, metres, and rotation, degrees.
+    pub correction: (f64, f64),
 }
 
 /// Everything the stage needs from the pipeline for one frame.
@@ -76,6 +94,10 @@ pub struct LoopFrame<'a> {
     pub measured: Measured<'a>,
     /// Fusion settings (which surfels are predicted, the depth band).
     pub fusion: &'a FusionConfig,
+    /// Surfels last seen before this frame are inactive: `fusion`'s
+    /// [`FusionConfig::active_at`] start, or where the map last restarted
+    /// when that is later.
+    pub active_from: u32,
     /// Farthest depth predicted, metres.
     pub far_m: f32,
     /// Fused frames so far (the prediction's warm-up counts them).
@@ -214,8 +236,7 @@ impl LoopCloser {
             tracked: *pose,
             ..LoopOutcome::default()
         };
-        if !self.config.enabled || map.is_empty() || frame.fusion.inactive_at(frame.now).is_empty()
-        {
+        if !self.config.enabled || map.is_empty() || frame.active_from == 0 {
             return outcome;
         }
         if frame.now % self.config.every_frames.max(1) == 0 {
@@ -245,7 +266,7 @@ impl LoopCloser {
         let predicts = |i| fusion.predicts(map_ref, i, fused);
         // The inactive model first: most frames see none, and then the
         // active one is not rendered at all.
-        let inactive = fusion.inactive_at(now);
+        let inactive = 0..frame.active_from;
         self.inactive
             .render(map_ref, pose, k, band, frame.measured, inactive, predicts);
         let min_overlap = (self.config.min_overlap_fraction * k.pixel_count() as f64) as usize;
@@ -258,7 +279,7 @@ impl LoopCloser {
             k,
             band,
             frame.measured,
-            fusion.active_at(now),
+            frame.active_from..u32::MAX,
             predicts,
         );
         let registration =
@@ -370,7 +391,7 @@ impl LoopCloser {
             self.last_global = Some(now);
             return;
         }
-        let inactive_before = frame.fusion.active_at(now).start;
+        let inactive_before = frame.active_from;
         self.collect_global(map, &found, view, look.pyramid, (now, inactive_before));
         match self.bend(map, trajectory, pose, now) {
             Ok(report) => {

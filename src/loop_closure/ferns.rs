@@ -333,14 +333,14 @@ impl FernDatabase {
     }
 
     /// Keyframes no more dissimilar to the current frame than
-    /// `max_dissimilarity`, taken before frame `before` (keyframes of frame
-    /// index `>= before` are skipped: a loop closure wants old places),
-    /// most similar first, at most `max` of them, into `out`. Nothing when
-    /// the current frame is not usable.
+    /// `max_dissimilarity`, taken at a frame in `frames` (a loop closure
+    /// wants old places; a camera lost in a restarted segment of the map,
+    /// the segment's), most similar first, at most `max` of them, into
+    /// `out`. Nothing when the current frame is not usable.
     pub fn query_into(
         &mut self,
         max_dissimilarity: f32,
-        before: u32,
+        frames: std::ops::Range<u32>,
         max: usize,
         out: &mut Vec<FernMatch>,
     ) {
@@ -355,7 +355,7 @@ impl FernDatabase {
                 .iter()
                 .zip(&self.same)
                 .enumerate()
-                .filter(|(_, (k, _))| k.frame_index < before)
+                .filter(|(_, (k, _))| frames.contains(&k.frame_index))
                 .map(|(i, (k, &same))| FernMatch {
                     keyframe: i,
                     dissimilarity: dissimilarity(good, k.frame.good, same),
@@ -374,7 +374,7 @@ impl FernDatabase {
     /// current frame is usable).
     pub fn best(&mut self) -> Option<FernMatch> {
         let mut out = Vec::with_capacity(1);
-        self.query_into(1.0, u32::MAX, 1, &mut out);
+        self.query_into(1.0, 0..u32::MAX, 1, &mut out);
         out.first().copied()
     }
 
@@ -554,7 +554,7 @@ mod tests {
         assert_eq!(db.add_if_novel(&DAffine3::IDENTITY, 2), Some(1));
         // Only keyframes before frame 2 count; the old one is far.
         let mut out = Vec::new();
-        db.query_into(0.5, 2, 5, &mut out);
+        db.query_into(0.5, 0..2, 5, &mut out);
         assert!(out.is_empty());
         db.clear();
         assert!(db.keyframes().is_empty());

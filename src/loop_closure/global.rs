@@ -191,7 +191,8 @@ pub fn find_global_match<F: Fn(usize) -> bool + Sync>(
     let Some(before) = before.filter(|_| config.looks_at(now) && tracked.is_finite()) else {
         return Err(GlobalMiss::NotLooked);
     };
-    let Some(registration) = relocaliser.place(pyramid, model, trackers, workspace, before) else {
+    let Some(registration) = relocaliser.place(pyramid, model, trackers, workspace, 0..before)
+    else {
         return Err(if relocaliser.attempts().is_empty() {
             GlobalMiss::NoKeyframe
         } else {

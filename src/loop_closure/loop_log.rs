@@ -23,7 +23,7 @@ impl LoopOutcome {
     /// ran or the global check looked): the frames the loop log has a row for.
     #[must_use]
     pub fn checked(&self) -> bool {
-        self.registration.is_some() || self.global_looked
+        self.registration.is_some() || self.global_looked || self.joined.is_some()
     }
 
     /// What the closure would make of the tracked pose
@@ -86,14 +86,30 @@ impl LoopOutcome {
                 (None, None) => "global looked".to_owned(),
             });
         }
+        if let Some(j) = &self.joined {
+            let from = j.keyframe_frame.map_or_else(
+                || "where the camera was lost".to_owned(),
+                |k| format!("keyframe {k}"),
+            );
+            parts.push(format!(
+                "segment from frame {} joined {:.1} cm {:.1} deg ({from})",
+                j.segment_start,
+                j.correction.0 * 100.0,
+                j.correction.1,
+            ));
+        }
         Some(parts.join("; "))
     }
 
-    /// The short name of the decision for the CSV: `closed-local`,
-    /// `closed-global`, `placed-global` (the pose alone moved),
-    /// `aligned`, `deform-refused`, `refused`.
+    /// The short name of the decision for the CSV: `joined` (a restarted
+    /// segment moved onto the map), `closed-local`, `closed-global`,
+    /// `placed-global` (the pose alone moved), `aligned`,
+    /// `deform-refused`, `refused`.
     #[must_use]
     pub fn decision_name(&self) -> &'static str {
+        if self.joined.is_some() {
+            return "joined";
+        }
         match (self.closed, self.global.is_some(), self.aligned) {
             (true, true, _) if self.global.is_some_and(|g| g.pose_only) => "placed-global",
             (true, true, _) => "closed-global",

@@ -25,7 +25,7 @@ pub mod local;
 pub mod loop_log;
 pub mod relocalise;
 
-pub use closer::{GlobalLook, LoopCloser, LoopFrame, LoopOutcome};
+pub use closer::{GlobalLook, LoopCloser, LoopFrame, LoopOutcome, SegmentJoin};
 
 use crate::track::icp::IcpGates;
 use deformation::DeformConfig;

@@ -303,11 +303,11 @@ impl Relocaliser {
         if !self.config.enabled {
             return None;
         }
-        self.place(pyramid, model, trackers, workspace, u32::MAX)
+        self.place(pyramid, model, trackers, workspace, 0..u32::MAX)
     }
 
     /// As [`Self::relocalise`] (whether or not relocalisation is on), from
-    /// keyframes of frames before `before` only: a global loop closure
+    /// the keyframes of frames in `frames` only: a global loop closure
     /// looks for places seen long ago.
     pub fn place<F: Fn(usize) -> bool + Sync>(
         &mut self,
@@ -315,7 +315,7 @@ impl Relocaliser {
         model: Model<'_, F>,
         trackers: Trackers<'_>,
         workspace: &mut TrackerWorkspace,
-        before: u32,
+        frames: std::ops::Range<u32>,
     ) -> Option<Relocalisation> {
         let k = pyramid.levels.first()?.intrinsics?;
         if !self.encoded {
@@ -324,7 +324,7 @@ impl Relocaliser {
         let mut matches = std::mem::take(&mut self.matches);
         self.database.query_into(
             self.config.max_dissimilarity,
-            before,
+            frames,
             self.config.candidates,
             &mut matches,
         );

@@ -45,6 +45,19 @@ pub struct SlamConfig {
     /// [`crate::simulated_noise`]); `None`: the depth as given.
     #[serde(default)]
     pub simulate_noise: Option<NoiseSimulation>,
+    /// Frames lost in a row after which the next lost one restarts mapping
+    /// ([`super::Verdict::Restarted`]): fused at the last placed pose as
+    /// the first frame of a new segment, the map so far kept but inactive.
+    /// 0: never; a lost camera then stays lost until it is re-acquired.
+    #[serde(default = "default_restart_after_lost")]
+    pub restart_after_lost: u32,
+}
+
+/// [`SlamConfig::restart_after_lost`]'s default, in frames: see `docs/design.md`.
+pub const DEFAULT_RESTART_AFTER_LOST: u32 = 10;
+
+fn default_restart_after_lost() -> u32 {
+    DEFAULT_RESTART_AFTER_LOST
 }
 
 impl SlamConfig {
@@ -69,6 +82,7 @@ impl SlamConfig {
             loop_closure: LoopClosureConfig::default(),
             clean_depth_noise: preset.clean_depth_noise(),
             simulate_noise: None,
+            restart_after_lost: DEFAULT_RESTART_AFTER_LOST,
         }
     }
 

@@ -15,12 +15,14 @@ mod input;
 mod localise;
 mod recovery;
 mod report;
+mod segments;
 mod settings_check;
 mod state;
 
-pub use config::{preset_tracker, PipelineError, SlamConfig};
+pub use config::{preset_tracker, PipelineError, SlamConfig, DEFAULT_RESTART_AFTER_LOST};
 pub use localise::Localisation;
 pub use report::{FrameReport, StageTimings, Verdict, VerdictCounts};
+pub use segments::Segment;
 pub use settings_check::{depth_scale_warning, layout_warnings, SettingsCheck, SettingsWarning};
 pub use state::{LastFusedFrame, PipelineScalars, PipelineState, StateView};
 
@@ -102,6 +104,12 @@ pub struct Pipeline {
     /// Localise mode ([`Pipeline::start_localising`]): what it keeps; `None`
     /// while mapping.
     localising: Option<Box<Localisation>>,
+    /// Where the map's current segment began ([`Verdict::Restarted`]).
+    segment: Segment,
+    /// While a restarted segment is not joined: the last frame placed
+    /// before the loss (working colour and camera-frame points), whose
+    /// view of the map the segment is looked for in first.
+    lost_frame: Option<Box<LastFusedFrame<Vec<u8>, Vec<glam::Vec3>>>>,
 }
 
 impl Pipeline {
@@ -149,6 +157,8 @@ impl Pipeline {
             frame_index: 0,
             counts: VerdictCounts::default(),
             localising: None,
+            segment: Segment::default(),
+            lost_frame: None,
         })
     }
 
@@ -245,6 +255,8 @@ impl Pipeline {
         self.decoded_was_pushed = false;
         self.localising = None;
         self.camera_fixed = CameraFixedMask::default();
+        self.segment = Segment::default();
+        self.lost_frame = None;
     }
 
     /// Processes one decoded frame stamped `timestamp` (seconds or frame
@@ -329,6 +341,7 @@ impl Pipeline {
         let t1 = now_ms();
         let mut tracked = self.track();
         self.dead_reckon(&mut tracked);
+        self.restart_if_lost_long(&mut tracked);
         let as_tracked = tracked.pose;
         let t2 = now_ms();
         let mut fusion = FusionStats::default();
@@ -340,6 +353,10 @@ impl Pipeline {
             // After fusion (the map holds what this frame saw), before the
             // prediction (so that it shows the map as corrected).
             closure = self.close_loops(&mut tracked.pose, index);
+            if let Some(joined) = self.join_segment(&mut tracked.pose, index) {
+                closure.closed = true;
+                closure.joined = Some(joined);
+            }
             t3b = now_ms();
             // A held frame placed by the sparse estimate measured its held
             // directions by features; only one held at the guess did not.
@@ -436,19 +453,21 @@ impl Pipeline {
             // (counted in `FusionStats::skipped`).
             removed = remove_unstable(&mut self.map, &self.config.fusion, index, &mut self.order);
         }
+        let active = self.active_at(index);
         let mut fusion = self.integrator.integrate(
             &mut self.map,
             &self.pyramid,
             &self.config.working_intrinsics(),
             pose,
-            index,
+            (index, active.clone()),
             &self.config.fusion,
             self.config.depth.max_m,
         );
         fusion.removed = removed;
         self.order.reserve_for(&self.map);
         if index % self.config.fusion.cleanup_interval_frames.max(1) == 0 {
-            fusion.absorbed += merge_copies(&mut self.map, &self.config.fusion, index);
+            fusion.absorbed +=
+                merge_copies(&mut self.map, &self.config.fusion, (index, active.start));
             fusion.removed +=
                 remove_unstable(&mut self.map, &self.config.fusion, index, &mut self.order);
         }
@@ -470,8 +489,9 @@ impl Pipeline {
                 tiles: self.integrator.depth_tiles(),
             },
             fusion: &self.config.fusion,
+            active_from: self.active_at(index).start,
             far_m: self.config.depth.max_m,
-            fused: self.counts.fused(),
+            fused: self.fused_in_segment(),
             verify: &self.config.tracker.verify,
         };
         let global = GlobalLook {
@@ -508,9 +528,7 @@ impl Pipeline {
     /// memory of this frame, the constant-velocity motion and the sparse
     /// estimator's reference.
     fn predict(&mut self, pose: &DAffine3, held_at_guess: bool) {
-        // The warm-up counts fused frames: frames lost early must not end
-        // it before the map had the frames to become stable.
-        self.render_prediction(pose, self.counts.fused(), false);
+        self.render_prediction(pose, false);
         self.velocity = match (self.last_good, self.counts.lost_streak) {
             (Some(before), 0) => Some(self.motion_since_measured(before, pose, held_at_guess)),
             _ => None,
@@ -572,10 +590,15 @@ impl Pipeline {
     /// Renders the model prediction from `pose`, the current frame's: its
     /// measured points hide what lies behind them (with the integrator's
     /// depth tiles for a fused frame, `lost_tiles` for a dead-reckoned
-    /// one); `fused` frames so far decide the warm-up.
-    fn render_prediction(&mut self, pose: &DAffine3, fused: u32, lost: bool) {
+    /// one). The segment's active surfels; the warm-up counts the
+    /// segment's fused frames, so that frames lost early do not end it
+    /// before the map had the frames to become stable.
+    fn render_prediction(&mut self, pose: &DAffine3, lost: bool) {
         let k = self.config.working_intrinsics();
         let fusion_cfg = self.config.fusion;
+        let fused = self.fused_in_segment();
+        // The frame being processed: `frame_index` moves on after `predict`.
+        let active = self.active_at(self.frame_index);
         let map = &self.map;
         let far_m = self.config.depth.max_m;
         let tiles = if lost {
@@ -592,8 +615,7 @@ impl Pipeline {
                 vertices: self.pyramid.levels.first().map_or(&[], |l| &l.vertices),
                 tiles,
             },
-            // The frame being processed: `frame_index` moves on after `predict`.
-            fusion_cfg.active_at(self.frame_index),
+            active,
             |i| fusion_cfg.predicts(map, i, fused),
         );
     }
@@ -612,6 +634,10 @@ impl Pipeline {
             }
             Verdict::Held => {
                 self.counts.held += 1;
+                self.counts.lost_streak = 0;
+            }
+            Verdict::Restarted => {
+                self.counts.restarted += 1;
                 self.counts.lost_streak = 0;
             }
             Verdict::Initialised | Verdict::Tracked => {

@@ -61,7 +61,7 @@ pub(super) const RECOVERY_MIN_CONDITIONING: f64 = 2e-3;
 /// Whether `result` pins all six degrees of freedom well enough to be
 /// trusted without the previous pose as a prior: well conditioned, and no
 /// direction held at its start.
-fn pins_pose(result: &TrackResult) -> bool {
+pub(super) fn pins_pose(result: &TrackResult) -> bool {
     result.conditioning >= RECOVERY_MIN_CONDITIONING && result.held_directions == 0
 }
 
@@ -542,7 +542,7 @@ impl Pipeline {
         let k = self.config.working_intrinsics();
         let vertices = self.pyramid.levels.first().map_or(&[][..], |l| &l.vertices);
         self.lost_tiles.build(vertices, k.width);
-        self.render_prediction(&pose, self.counts.fused(), true);
+        self.render_prediction(&pose, true);
         self.place_current(&pose);
     }
 }
@@ -550,16 +550,20 @@ impl Pipeline {
 impl Pipeline {
     /// The frame placed by relocalisation against every keyframe and the
     /// map's stable surfels, whenever last seen (as the prediction's, the
-    /// warm-up counts fused frames); `None` when no keyframe places it.
+    /// warm-up counts the segment's fused frames); `None` when no keyframe
+    /// places it. In a segment not yet joined to the map before it, the
+    /// segment's keyframes and surfels only: the others are in another
+    /// frame.
     pub(super) fn place_in_whole_map(&mut self) -> Option<Relocalisation> {
         let map = &self.map;
         let fusion = self.config.fusion;
-        let fused = self.counts.fused();
+        let fused = self.fused_in_segment();
+        let segment = self.segment.start..u32::MAX;
         self.relocaliser.place(
             &self.pyramid,
             Model {
                 map,
-                seen: 0..u32::MAX,
+                seen: segment.clone(),
                 include: |i| fusion.predicts(map, i, fused),
                 far_m: self.config.depth.max_m,
             },
@@ -569,7 +573,7 @@ impl Pipeline {
                 min_conditioning: RECOVERY_MIN_CONDITIONING,
             },
             &mut self.tracker,
-            u32::MAX,
+            segment,
         )
     }
 

@@ -25,6 +25,12 @@ pub enum Verdict {
     Held,
     /// Not tracked; not fused; the pose is held at the last good one.
     Lost(LostReason),
+    /// Lost for [`SlamConfig::restart_after_lost`](super::SlamConfig::restart_after_lost)
+    /// frames in a row: fused at the last placed pose as the first frame
+    /// of a new segment of the map. The map so far is kept, but no longer
+    /// tracked against (it is inactive, as if seen long ago) until a loop
+    /// closure registers the new segment onto it.
+    Restarted,
     /// Localise mode only: the frame could not be placed in the saved map
     /// (neither tracked from the last placed frame nor relocalised from
     /// the keyframes). It has no pose ([`FrameReport::pose`] is `None`);
@@ -34,7 +40,7 @@ pub enum Verdict {
 
 impl Verdict {
     /// Short name: `initialised`, `tracked`, `recovered`, `held`, `lost`,
-    /// `unplaced`.
+    /// `restarted`, `unplaced`.
     #[must_use]
     pub fn name(&self) -> &'static str {
         match self {
@@ -43,12 +49,13 @@ impl Verdict {
             Verdict::Recovered => "recovered",
             Verdict::Held => "held",
             Verdict::Lost(_) => "lost",
+            Verdict::Restarted => "restarted",
             Verdict::Unplaced => "unplaced",
         }
     }
 
-    /// True when the frame was fused (initialised, tracked, recovered or
-    /// held) while mapping. In localise mode nothing is fused: these
+    /// True when the frame was fused (initialised, tracked, recovered,
+    /// held or restarted) while mapping. In localise mode nothing is fused: these
     /// verdicts there mean placed in the map.
     #[must_use]
     pub fn is_fused(&self) -> bool {
@@ -67,15 +74,18 @@ pub struct VerdictCounts {
     pub recovered: u32,
     /// Frames fused with some directions held at the motion prior.
     pub held: u32,
+    /// Frames that started a new segment of the map after a long loss.
+    pub restarted: u32,
     /// Frames lost in a row up to the last one (0 when tracking).
     pub lost_streak: u32,
 }
 
 impl VerdictCounts {
-    /// Frames fused: tracked (the first included), recovered or held.
+    /// Frames fused: tracked (the first included), recovered, held or
+    /// restarted.
     #[must_use]
     pub fn fused(&self) -> u32 {
-        self.tracked + self.recovered + self.held
+        self.tracked + self.recovered + self.held + self.restarted
     }
 }
 

@@ -6,7 +6,7 @@
 //! fern index is rebuilt from the keyframes' codes, the re-acquisition
 //! tracker from the configuration.
 
-use super::{Pipeline, PipelineError, SlamConfig, VerdictCounts};
+use super::{Pipeline, PipelineError, Segment, SlamConfig, VerdictCounts};
 use crate::fusion::{DepthTiles, Measured, SurfelMap};
 use crate::loop_closure::ferns::Keyframe;
 use crate::noise::SensorNoise;
@@ -41,6 +41,8 @@ pub struct PipelineScalars {
     /// Tracker and fusion noise models as configured, before the first
     /// frame's clean-depth check chose the ones in the configuration.
     pub configured_noise: (SensorNoise, SensorNoise),
+    /// The map's current segment (the default: since the first frame).
+    pub segment: Segment,
 }
 
 /// The last fused frame as the sparse estimator keeps it: working colour
@@ -81,6 +83,9 @@ pub struct StateView<'a> {
     pub photometric: Vec<&'a [ReferencePoint]>,
     /// What the mask of things carried with the camera remembers.
     pub camera_fixed: &'a CameraFixedMask,
+    /// While a restarted segment is not joined: the last frame placed
+    /// before the loss.
+    pub lost_frame: Option<LastFusedFrame<&'a [u8], &'a [Vec3]>>,
 }
 
 /// The pipeline's state, owned ([`Pipeline::from_state`]).
@@ -106,6 +111,9 @@ pub struct PipelineState {
     pub photometric: Vec<Vec<ReferencePoint>>,
     /// What the mask of things carried with the camera remembers.
     pub camera_fixed: CameraFixedMask,
+    /// While a restarted segment is not joined: the last frame placed
+    /// before the loss (`None` in sessions saved before restarts).
+    pub lost_frame: Option<LastFusedFrame<Vec<u8>, Vec<Vec3>>>,
 }
 
 /// Whether the tracker keeps the last frame for its photometric term.
@@ -144,6 +152,7 @@ impl Pipeline {
                 loop_counters: self.loop_closer.counters(),
                 depth_checked: self.settings_check.depth_checked,
                 configured_noise: self.configured_noise,
+                segment: self.segment,
             },
             map: &self.map,
             runs: self.order.runs(),
@@ -153,6 +162,12 @@ impl Pipeline {
             last_fused,
             photometric,
             camera_fixed: &self.camera_fixed,
+            lost_frame: self.lost_frame.as_deref().map(|f| LastFusedFrame {
+                rgb: &f.rgb[..],
+                vertices: &f.vertices[..],
+                width: f.width,
+                height: f.height,
+            }),
         }
     }
 
@@ -176,6 +191,15 @@ impl Pipeline {
             return Err(bad(format!(
                 "verdict counts {:?} for {frames} frames",
                 s.counts
+            )));
+        }
+        let segment = s.segment;
+        if segment.fused_before > s.counts.fused() || (s.frames > 0 && segment.start >= s.frames) {
+            return Err(bad(format!(
+                "segment from frame {} after {} fused frames, for {frames} frames and {} fused",
+                segment.start,
+                segment.fused_before,
+                s.counts.fused()
             )));
         }
         p.order
@@ -210,6 +234,19 @@ impl Pipeline {
         p.loop_closer.restore_counters(s.loop_counters);
         p.settings_check.depth_checked = s.depth_checked;
         p.configured_noise = s.configured_noise;
+        p.segment = segment;
+        if let Some(lost) = &state.lost_frame {
+            let pixels = p.config.working_intrinsics().pixel_count();
+            let fits = lost.vertices.len() == pixels && lost.rgb.len() == 3 * pixels;
+            if !fits || segment.start == 0 {
+                return Err(bad(format!(
+                    "a frame lost before a restart of {} points, for a segment from frame {} and {pixels} pixels",
+                    lost.vertices.len(),
+                    segment.start
+                )));
+            }
+        }
+        p.lost_frame = state.lost_frame.map(Box::new);
         p.camera_fixed = state.camera_fixed;
         if remembers_frames(&p.config) {
             p.tracker.restore_photometric_memory(state.photometric);
@@ -246,10 +283,11 @@ impl Pipeline {
         let index = self.placed_frame;
         let was_fused = u64::from(index) + 1 + u64::from(self.counts.lost_streak)
             == u64::from(self.frame_index);
-        let fused = self.counts.fused().saturating_sub(u32::from(was_fused));
+        let fused = self.fused_in_segment().saturating_sub(u32::from(was_fused));
         let mut tiles = DepthTiles::default();
         tiles.build(&last.vertices, k.width);
         let fusion_cfg = self.config.fusion;
+        let active = self.active_at(index);
         let map = &self.map;
         self.prediction.render(
             map,
@@ -260,7 +298,7 @@ impl Pipeline {
                 vertices: &last.vertices,
                 tiles: &tiles,
             },
-            fusion_cfg.active_at(index),
+            active,
             |i| fusion_cfg.predicts(map, i, fused),
         );
         Ok(())

@@ -2,7 +2,9 @@
 //! The sparse estimator matches the next frames against it, and the model
 //! prediction the next frame is tracked against is rendered again from it
 //! on loading; with the photometric term on the last frame, also that
-//! term's reference pixels. Little-endian: `u64` width and height (working
+//! term's reference pixels. `lost_frame.bin`, in the same format without
+//! photometric references: while a restarted segment is not joined, the
+//! last frame placed before the loss (optional). Little-endian: `u64` width and height (working
 //! resolution; 0 and 0 before the first frame), RGB8 per pixel, 3 `f32`
 //! per pixel (camera-frame point, metres; 0 = no depth); `u64` pyramid
 //! levels, per level `u64` count and per pixel 4 `f32` (point, world frame,
@@ -15,7 +17,11 @@ use crate::track::rgb::ReferencePoint;
 use glam::Vec3;
 use std::io::{Read, Write};
 
-const NAME: &str = "last_frame.bin";
+/// The last fused frame's entry.
+pub(super) const LAST_FRAME: &str = "last_frame.bin";
+
+/// The last frame placed before a loss that restarted the map.
+pub(super) const LOST_FRAME: &str = "lost_frame.bin";
 
 /// The last fused frame and the photometric references, owned.
 pub(super) type FrameMemory = (
@@ -53,32 +59,32 @@ pub(super) fn write_frame_memory(
     Ok(())
 }
 
-/// Reads what [`write_frame_memory`] wrote for a working image of at
-/// most `max_pixels`.
+/// Reads what [`write_frame_memory`] wrote to entry `name` for a working
+/// image of at most `max_pixels`.
 pub(super) fn read_frame_memory(
     input: impl Read,
-    max_pixels: usize,
+    (name, max_pixels): (&'static str, usize),
 ) -> Result<FrameMemory, SessionError> {
-    let mut r = LeReader::new(input, NAME);
+    let mut r = LeReader::new(input, name);
     let width = r.count(max_pixels, "pixels wide")?;
     let height = r.count(max_pixels, "pixels high")?;
     let pixels = width * height;
     if pixels > max_pixels {
         return Err(SessionError::Corrupt(format!(
-            "{NAME}: a {width}x{height} frame for a camera of {max_pixels} pixels"
+            "{name}: a {width}x{height} frame for a camera of {max_pixels} pixels"
         )));
     }
     let last = if pixels == 0 {
         None
     } else {
         let rgb = r.u8s(3 * pixels)?;
-        let mut vertices = alloc(pixels, NAME)?;
+        let mut vertices = alloc(pixels, name)?;
         for _ in 0..pixels {
             vertices.push(Vec3::new(r.f32()?, r.f32()?, r.f32()?));
         }
         if !vertices.iter().all(|v| v.is_finite()) {
             return Err(SessionError::Corrupt(format!(
-                "{NAME}: a point is not finite"
+                "{name}: a point is not finite"
             )));
         }
         Some(LastFusedFrame {
@@ -92,7 +98,7 @@ pub(super) fn read_frame_memory(
     let mut photometric = Vec::with_capacity(levels);
     for _ in 0..levels {
         let n = r.count(max_pixels, "reference pixels")?;
-        let mut level = alloc(n, NAME)?;
+        let mut level = alloc(n, name)?;
         for _ in 0..n {
             level.push(ReferencePoint {
                 point_in_world: Vec3::new(r.f32()?, r.f32()?, r.f32()?),

@@ -9,7 +9,7 @@ use crate::camera::Intrinsics;
 use crate::frame::DepthSettings;
 use crate::fusion::MapSchedule;
 use crate::noise::SensorNoise;
-use crate::pipeline::{PipelineScalars, SlamConfig, StateView, VerdictCounts};
+use crate::pipeline::{PipelineScalars, Segment, SlamConfig, StateView, VerdictCounts};
 use serde::{Deserialize, Serialize};
 
 /// The two fields every version has: read before the rest.
@@ -88,6 +88,15 @@ pub struct Manifest {
     pub frames: u32,
     /// Verdict counts `[tracked, lost, recovered, held, lost_streak]`.
     pub counts: [u32; 5],
+    /// Frames that restarted the map after a long loss (absent in sessions
+    /// saved before restarts: none).
+    #[serde(default)]
+    pub restarted: u32,
+    /// The map's current segment `[first frame, frames fused before it]`
+    /// (absent in sessions saved before restarts: `[0, 0]`, the first
+    /// segment).
+    #[serde(default)]
+    pub segment: [u32; 2],
     /// Pose of the last placed frame (fused, or dead-reckoned while lost).
     pub last_good: Option<[f64; 12]>,
     /// Index of that frame (absent in sessions saved before dead
@@ -136,6 +145,8 @@ impl Manifest {
             configured_noise: [s.configured_noise.0, s.configured_noise.1],
             frames: s.frames,
             counts: [c.tracked, c.lost, c.recovered, c.held, c.lost_streak],
+            restarted: c.restarted,
+            segment: [s.segment.start, s.segment.fused_before],
             last_good: s.last_good.as_ref().map(pose_to_rows),
             placed_frame: s.placed_frame,
             measured_frame: s.measured_frame,
@@ -189,6 +200,7 @@ impl Manifest {
                 lost,
                 recovered,
                 held,
+                restarted: self.restarted,
                 lost_streak,
             },
             last_good: self.last_good.as_ref().map(pose_from_rows),
@@ -202,6 +214,10 @@ impl Manifest {
             ),
             depth_checked: self.depth_checked,
             configured_noise: (self.configured_noise[0], self.configured_noise[1]),
+            segment: Segment {
+                start: self.segment[0],
+                fused_before: self.segment[1],
+            },
         }
     }
 

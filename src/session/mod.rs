@@ -15,6 +15,7 @@
 //! | `poses.txt` | the trajectory and the tracked one, exactly | `poses.rs` |
 //! | `last_frame.bin` | what the next frames remember of the last fused one | `frame_memory.rs` |
 //! | `camera_fixed.bin` | the last frame as the mask of things carried with the camera saw it (optional: older sessions start it afresh) | `camera_fixed.rs` |
+//! | `lost_frame.bin` | while a segment begun by a restart after a long loss is not joined: the last frame placed before the loss (only then) | `frame_memory.rs` |
 //!
 //! Written and read an entry at a time, the surfels a row at a time: no
 //! copy of the map's bytes is held. A file that is cut short, damaged,
@@ -53,7 +54,7 @@ const MAP_INDEX: &str = "map_index.bin";
 const KEYFRAMES: &str = "keyframes.bin";
 const TRAJECTORY: &str = "trajectory.txt";
 const POSES: &str = "poses.txt";
-const LAST_FRAME: &str = "last_frame.bin";
+use frame_memory::{LAST_FRAME, LOST_FRAME};
 const CAMERA_FIXED: &str = "camera_fixed.bin";
 
 /// Largest manifest read, bytes.
@@ -115,6 +116,11 @@ pub fn save<W: Write + Seek>(pipeline: &Pipeline, out: W) -> Result<W, SessionEr
     entry(CAMERA_FIXED, &mut |w| {
         camera_fixed::write_camera_fixed(w, state.camera_fixed)
     })?;
+    if let Some(lost) = &state.lost_frame {
+        entry(LOST_FRAME, &mut |w| {
+            frame_memory::write_frame_memory(w, Some(lost), &[])
+        })?;
+    }
     zip.finish().map_err(|e| failed(&e))
 }
 
@@ -235,8 +241,21 @@ fn read<R: Read + Seek>(input: R, camera: Option<&Camera>) -> Result<Pipeline, S
     let (trajectory, online_trajectory) =
         poses::read_poses(entry(&mut zip, POSES)?, manifest.frames as usize)?;
     let working = config.working_intrinsics();
-    let (last_fused, photometric) =
-        frame_memory::read_frame_memory(entry(&mut zip, LAST_FRAME)?, working.pixel_count())?;
+    let (last_fused, photometric) = frame_memory::read_frame_memory(
+        entry(&mut zip, LAST_FRAME)?,
+        (LAST_FRAME, working.pixel_count()),
+    )?;
+    let lost_frame = match zip.by_name(LOST_FRAME) {
+        Err(zip::result::ZipError::FileNotFound) => None,
+        Err(e) => return Err(corrupt(LOST_FRAME, e.to_string())),
+        Ok(file) => {
+            frame_memory::read_frame_memory(
+                BufReader::new(file),
+                (LOST_FRAME, working.pixel_count()),
+            )?
+            .0
+        }
+    };
     let input_pixels = config.intrinsics.pixel_count();
     let camera_fixed = match zip.by_name(CAMERA_FIXED) {
         Err(zip::result::ZipError::FileNotFound) => Default::default(),
@@ -254,6 +273,7 @@ fn read<R: Read + Seek>(input: R, camera: Option<&Camera>) -> Result<Pipeline, S
         last_fused,
         photometric,
         camera_fixed,
+        lost_frame,
     })
     .map_err(|e| SessionError::Corrupt(e.to_string()))
 }

@@ -54,6 +54,8 @@ export interface SlamConfig {
   globalLoopClosure?: boolean;
   /** Relocalise a lost camera from the fern keyframes. */
   relocalise?: boolean;
+  /** After this many frames lost in a row, map on from the last placed pose in a new segment, joined to the map so far once a frame is placed in it (0: stay lost until re-acquired). */
+  restartAfterLost?: number;
   /** Depth noise model weighting tracking and fusion (default: the preset's; 'uniform' = no weighting). */
   noise?: 'kinect-v1' | 'structured-light' | 'simulated-kinect' | 'active-stereo' | 'lidar' | 'rendered' | 'uniform';
   /** Simulate a sensor's noise on every pushed frame's (clean) depth: ICL-NUIM's Kinect v1 recipe. */
@@ -171,6 +173,12 @@ pub const CONFIG_KEYS: &[ConfigKey] = &[
         Setter::Bool(|c, v| c.loop_closure.global.enabled = v),
     ),
     key("relocalise", Setter::Bool(|c, v| c.relocalise.enabled = v)),
+    key(
+        "restartAfterLost",
+        Setter::Integer(1e9, |c, v| {
+            c.restart_after_lost = u32::try_from(v).unwrap_or(u32::MAX)
+        }),
+    ),
 ];
 
 const fn key(name: &'static str, set: Setter) -> ConfigKey {

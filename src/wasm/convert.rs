@@ -25,8 +25,8 @@ export interface Preset {
 export interface FrameReport {
   index: number;
   timestamp: number;
-  /** 'recovered': re-acquired against the map after a loss (fused); while localising, placed by relocalisation. 'unplaced' (localising only): not found in the loaded map, no pose (pose, translation and quaternion are null). 'held': fused, but the geometry left some directions of motion free (a flat wall) and the pose was held at the motion prior in those. */
-  verdict: 'initialised' | 'tracked' | 'recovered' | 'held' | 'lost' | 'unplaced';
+  /** 'recovered': re-acquired against the map after a loss (fused); while localising, placed by relocalisation. 'unplaced' (localising only): not found in the loaded map, no pose (pose, translation and quaternion are null). 'held': fused, but the geometry left some directions of motion free (a flat wall) and the pose was held at the motion prior in those. 'restarted': lost for restartAfterLost frames in a row, fused at the last placed pose as the first frame of a new segment of the map; the map so far is kept but not tracked against until a frame of the segment is placed in it (loopDecision then says 'joined' and loopClosed is true: the segment moved onto it). */
+  verdict: 'initialised' | 'tracked' | 'recovered' | 'held' | 'lost' | 'restarted' | 'unplaced';
   lostReason: null | 'too-few-inliers' | 'high-residual' | 'ill-conditioned' | 'implausible-motion';
   /** world_from_camera, 4x4 column-major, metres; null for an 'unplaced' frame. */
   pose: Float64Array | null;
@@ -46,7 +46,7 @@ export interface FrameReport {
   /** New surfels not added because the map was at maxSurfels. */
   skipped: number;
   /** Verdict counts of the run so far, this frame included; lostStreak: frames lost in a row. */
-  counts: { tracked: number; lost: number; recovered: number; held: number; lostStreak: number };
+  counts: { tracked: number; lost: number; recovered: number; held: number; restarted: number; lostStreak: number };
   /** Lost and then placed by relocalisation: the frame index of the keyframe it was placed by; else null. */
   relocalisedFrom: number | null;
   /** A lost frame whose pose the sparse estimate carried on from the frame before. */
@@ -231,6 +231,7 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
                 ("lost", r.counts.lost.into()),
                 ("recovered", r.counts.recovered.into()),
                 ("held", r.counts.held.into()),
+                ("restarted", r.counts.restarted.into()),
                 ("lostStreak", r.counts.lost_streak.into()),
             ])
             .into(),

@@ -18,7 +18,7 @@ test('relocalised frames, loop closures and the loop stage time reach the panel 
       const table = document.getElementById('stats');
       const stats = new Stats(table);
       const plots = new Plots({ error: document.getElementById('error') });
-      const verdicts = ['tracked', 'tracked', 'lost', 'lost', 'recovered', 'held', 'tracked', 'tracked'];
+      const verdicts = ['tracked', 'tracked', 'lost', 'lost', 'recovered', 'held', 'tracked', 'restarted'];
       const rows = () => Object.fromEntries([...table.rows].map((tr) => [tr.cells[0].textContent.trim(), tr.cells[1].textContent]));
       let withoutLoop = null;
       verdicts.forEach((verdict, index) => {
@@ -54,16 +54,16 @@ test('relocalised frames, loop closures and the loop stage time reach the panel 
     assert.equal(r.rows['loop'], '1.0', 'the loop stage time once reported');
     assert.equal(r.withoutLoop['loop closures'], '–', 'no count before the module reports one');
     assert.equal(r.withoutLoop['loop'], undefined, 'no loop stage row before the module reports one');
-    assert.equal(r.rows['tracked / held / lost / recovered'], '4 / 1 / 2 / 1');
+    assert.equal(r.rows['tracked / held / lost / recovered / restarted'], '3 / 1 / 2 / 1 / 1');
     assert.equal(r.withoutLoop['masked as carried with the camera'], '1 frame (this one: 12.5 % of the image)');
     assert.equal(r.rows['masked as carried with the camera'], '2 frames (this one: 0.0 % of the image)', 'the count stays when the mask ends');
     assert.deepEqual(r.marks, [
       { frame: 4, kind: 'relocalised' },
       { frame: 7, kind: 'loop' },
     ]);
-    // tracked 1, held 3, relocalised 5, lost 6 (VERDICT_CODES order + 1).
-    assert.deepEqual(r.strip, [1, 1, 6, 6, 5, 3, 1, 1]);
-    for (const name of ['tracked', 'held', 'lost', 'relocalised']) assert.ok(r.seen[name] > 0, `${name} drawn in the strip: ${JSON.stringify(r.seen)}`);
+    // tracked 1, held 3, relocalised 5, restarted 6, lost 7 (VERDICT_CODES order + 1).
+    assert.deepEqual(r.strip, [1, 1, 7, 7, 5, 3, 1, 6]);
+    for (const name of ['tracked', 'held', 'lost', 'relocalised', 'restarted']) assert.ok(r.seen[name] > 0, `${name} drawn in the strip: ${JSON.stringify(r.seen)}`);
     assert.equal(r.seen.recovered, 0, 'the relocalised frame is shown as relocalised, not only recovered');
     assert.deepEqual(errors, []);
   } finally {
