@@ -31,6 +31,9 @@ fn config(dead_reckoning: bool) -> SlamConfig {
     config.intrinsics = Intrinsics::new(262.5, 262.5, 159.5, 119.5, 320, 240);
     config.depth = synthetic::depth_settings();
     config.tracker.verify.dead_reckoning = dead_reckoning;
+    // Dead reckoning alone: a restart would end the losses it is judged by
+    // (restarts: `tests/restart_after_loss.rs`).
+    config.restart_after_lost = 0;
     config
 }
 
@@ -296,6 +299,7 @@ fn real_run(dir: &std::path::Path, stride: usize, dead_reckoning: bool) -> (usiz
     let sequence = Sequence::open(dir).expect("sequence opens");
     let mut config = SlamConfig::from_preset(sequence.preset);
     config.tracker.verify.dead_reckoning = dead_reckoning;
+    config.restart_after_lost = 0;
     let mut slam = Pipeline::new(config.clone()).expect("valid config");
     let mut lost = 0;
     for entry in sequence.frames.iter().step_by(stride) {

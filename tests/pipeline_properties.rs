@@ -35,6 +35,7 @@ use surfel_slam::session;
 use surfel_slam::simulated_noise::{NoiseSimulation, SimulatedSensor};
 use surfel_slam::synthetic::{self, NoiseModel};
 use surfel_slam::track::TrackerMode;
+use surfel_slam::Verdict;
 use surfel_slam::{FrameReport, Pipeline, PipelineError, SlamConfig};
 
 /// The crate's seeded generator, with the draws this test needs.
@@ -85,6 +86,11 @@ fn random_config(pool: &Pool, rng: &mut Rng) -> SlamConfig {
             seed: draw >> 2,
         });
     }
+    // A third restart mapping after 1-3 lost frames: frames pushed out of
+    // order are lost, so segments begin, join and are saved within a case.
+    if (draw >> 8) % 3 == 0 {
+        config.restart_after_lost = 1 + ((draw >> 12) % 3) as u32;
+    }
     config
 }
 
@@ -105,6 +111,8 @@ struct Coverage {
     longest_run: usize,
     frames: usize,
     lost: usize,
+    restarts: usize,
+    joins: usize,
     refused: usize,
     resets: usize,
     resets_after_100: usize,
@@ -173,7 +181,7 @@ fn check(slam: &Pipeline, model: &Model, at: &dyn Fn(&str) -> String) {
     let frames = slam.frames() as usize;
     assert_eq!(frames, model.accepted.len(), "{}", at("frames accepted"));
     assert_eq!(
-        (c.tracked + c.lost + c.recovered + c.held) as usize,
+        (c.tracked + c.lost + c.recovered + c.held + c.restarted) as usize,
         frames,
         "{}",
         at(&format!("verdict counts {c:?}"))
@@ -374,6 +382,8 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
             cov.frames += 1;
             cov.noisy_frames += usize::from(slam.config().simulate_noise.is_some());
             cov.lost += usize::from(!r.verdict.is_fused());
+            cov.restarts += usize::from(r.verdict == Verdict::Restarted);
+            cov.joins += usize::from(r.loop_outcome.joined.is_some());
             let interval = slam.config().fusion.cleanup_interval_frames.max(1);
             if r.verdict.is_fused() && r.index > 0 && r.index % interval == 0 {
                 cov.cleanups += 1;
@@ -562,6 +572,8 @@ fn add(total: &mut Coverage, c: Coverage) {
     total.longest_run = total.longest_run.max(c.longest_run);
     total.frames += c.frames;
     total.lost += c.lost;
+    total.restarts += c.restarts;
+    total.joins += c.joins;
     total.refused += c.refused;
     total.resets += c.resets;
     total.resets_after_100 += c.resets_after_100;
@@ -607,7 +619,7 @@ fn any_sequence_of_calls_keeps_the_pipeline_consistent_on_synthetic_frames() {
         total.refused > 0 && total.config_changes > 0 && total.exports > 0,
         "{total:?}"
     );
-    assert!(total.sessions > 0, "{total:?}");
+    assert!(total.sessions > 0 && total.restarts > 0, "{total:?}");
     assert!(
         total.localise_starts > 0 && total.localised > 0,
         "{total:?}"

@@ -88,7 +88,7 @@ test('bad frames and settings throw a clear Error; the Slam keeps working', { sk
     assert.equal(slam.surfelCount, before, 'a lost frame was fused');
     const back = slam.pushFrame(c, d, i++);
     assert.equal(back.verdict, 'recovered');
-    assert.deepEqual(back.counts, { tracked: i - 2, lost: 1, recovered: 1, held: 0, lostStreak: 0 });
+    assert.deepEqual(back.counts, { tracked: i - 2, lost: 1, recovered: 1, held: 0, restarted: 0, lostStreak: 0 });
     assert.ok(slam.positions().every(Number.isFinite));
   } finally {
     slam.free();

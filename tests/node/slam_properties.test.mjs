@@ -68,7 +68,7 @@ function check(slam, model, where) {
   const r = model.last;
   if (r) {
     assert.equal(r.index + 1, slam.frames, `${where}: report index`);
-    assert.equal(r.counts.tracked + r.counts.lost + r.counts.recovered + r.counts.held, slam.frames, `${where}: verdict counts`);
+    assert.equal(r.counts.tracked + r.counts.lost + r.counts.recovered + r.counts.held + r.counts.restarted, slam.frames, `${where}: verdict counts`);
     assert.equal(r.surfels, slam.liveSurfels, `${where}: report surfels`);
     assert.equal(r.surfelSlots, n, `${where}: report surfelSlots`);
     assert.ok(r.pose.every(Number.isFinite), `${where}: pose`);
