@@ -7,11 +7,14 @@
 //! lost or dead-reckoned to. Surfels last seen before the segment's first
 //! frame are inactive from then on (`active_at`): the segment's pose
 //! relative to them is a guess, so neither tracking nor fusion reads them.
-//! Every [`JOIN_EVERY_FRAMES`] fused frames the segment's frame is looked
-//! up among the keyframes from before the segment and registered against
-//! the map before it, with relocalisation's checks. On a match the
-//! segment (its surfels, poses and keyframes) moves rigidly by the
-//! correction, and the boundary goes: the map is one again.
+//! The segment's frames are placed in the map before it as a lost frame
+//! is: from where the camera was lost (the last placed frame's view, the
+//! wide search and re-acquisition's checks), and by the keyframes from
+//! before the segment that look like them (relocalisation's checks); on
+//! every frame at first, then less often (see [`Pipeline::join_segment`]).
+//! On a match the segment (its surfels, poses and keyframes) moves rigidly
+//! by the correction: it was tracked, only where it began was a guess. The
+//! boundary then goes: the map is one again.
 
 use super::recovery::{pins_pose, Tracked, RECOVERY_MIN_CONDITIONING};
 use super::{LastFusedFrame, Pipeline, Verdict};
@@ -41,7 +44,7 @@ pub struct Segment {
 const RESTART_MIN_DEPTH_SHARE: f64 = 0.25;
 
 /// Fused frames of a segment not yet joined between two looks among the
-/// keyframes from before it.
+/// keyframes from before it, after its first [`JOIN_FROM_LOSS_EVERY_FRAME`].
 const JOIN_EVERY_FRAMES: u32 = 4;
 
 /// For its first this many fused frames, a segment not yet joined is also
@@ -106,13 +109,13 @@ impl Pipeline {
 
     /// After frame `index` was fused at `pose` in a segment not yet joined:
     /// places the frame in the map before the segment, against the surfels
-    /// last seen before it, from where the camera was lost (every
-    /// frame for the segment's first [`JOIN_FROM_LOSS_EVERY_FRAME`], then
-    /// every second up to [`JOIN_FROM_LOSS_FRAMES`]: a camera swung away
-    /// and back) and from
-    /// the keyframes from before the segment that look like it (every
-    /// [`JOIN_EVERY_FRAMES`]). On a match moves the segment onto that map
-    /// (see the module documentation) and returns what moved it.
+    /// last seen before it, from where the camera was lost (every frame
+    /// for the segment's first [`JOIN_FROM_LOSS_EVERY_FRAME`], then every
+    /// second up to [`JOIN_FROM_LOSS_FRAMES`]: a camera swung away and
+    /// back) and by the keyframes from before the segment that look like
+    /// it (every frame for the first [`JOIN_FROM_LOSS_EVERY_FRAME`], then
+    /// every [`JOIN_EVERY_FRAMES`]). On a match moves the segment onto that
+    /// map (see the module documentation) and returns what moved it.
     pub(super) fn join_segment(&mut self, pose: &mut DAffine3, index: u32) -> Option<SegmentJoin> {
         let start = self.segment.start;
         let since = index.checked_sub(start)?;
@@ -191,12 +194,11 @@ impl Pipeline {
     /// The frame placed against the surfels last seen before frame
     /// `start` (the segment's first), as re-acquisition places a lost
     /// frame: the model seen from the pose of the last frame placed before
-    /// the loss, down to what that frame measured ([`Pipeline::lost_frame`]),
-    /// the wide search from there, and its checks: the
-    /// normal tracker started at its result keeps it, the view pins all six
-    /// degrees of freedom, and the frame's points keep the model's free
-    /// space clear. Renders into the model prediction, which the `predict`
-    /// stage renders again.
+    /// the loss, down to what that frame measured (`lost_frame`), the wide
+    /// search from there, and its checks: the normal tracker started at its
+    /// result keeps it, the view pins all six degrees of freedom, and the
+    /// frame's points keep the model's free space clear. Renders into the
+    /// model prediction, which the `predict` stage renders again.
     fn place_from_loss(&mut self, start: u32) -> Option<DAffine3> {
         // The segment's first frame was placed where the last placed frame was.
         let (_, from) = *self.online_trajectory.get(start as usize)?;
