@@ -555,15 +555,26 @@ impl Pipeline {
     /// segment's keyframes and surfels only: the others are in another
     /// frame.
     pub(super) fn place_in_whole_map(&mut self) -> Option<Relocalisation> {
+        let fused = self.fused_in_segment();
+        self.place_by_keyframes(self.segment.start..u32::MAX, fused)
+    }
+
+    /// The frame placed by relocalisation from the keyframes of frames in
+    /// `frames` that look like it, against the stable surfels last seen in
+    /// `frames` (the warm-up counting `fused` frames), with
+    /// relocalisation's checks.
+    pub(super) fn place_by_keyframes(
+        &mut self,
+        frames: std::ops::Range<u32>,
+        fused: u32,
+    ) -> Option<Relocalisation> {
         let map = &self.map;
         let fusion = self.config.fusion;
-        let fused = self.fused_in_segment();
-        let segment = self.segment.start..u32::MAX;
         self.relocaliser.place(
             &self.pyramid,
             Model {
                 map,
-                seen: segment.clone(),
+                seen: frames.clone(),
                 include: |i| fusion.predicts(map, i, fused),
                 far_m: self.config.depth.max_m,
             },
@@ -573,7 +584,7 @@ impl Pipeline {
                 min_conditioning: RECOVERY_MIN_CONDITIONING,
             },
             &mut self.tracker,
-            segment,
+            frames,
         )
     }
 

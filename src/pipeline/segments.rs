@@ -16,10 +16,10 @@
 //! by the correction: it was tracked, only where it began was a guess. The
 //! boundary then goes: the map is one again.
 
-use super::recovery::{pins_pose, Tracked, RECOVERY_MIN_CONDITIONING};
+use super::recovery::{pins_pose, Tracked};
 use super::{LastFusedFrame, Pipeline, Verdict};
 use crate::fusion::Measured;
-use crate::loop_closure::relocalise::{Model, Relocalisation, Trackers};
+use crate::loop_closure::relocalise::Relocalisation;
 use crate::loop_closure::SegmentJoin;
 use crate::se3;
 use crate::track::track;
@@ -170,25 +170,8 @@ impl Pipeline {
         if !self.relocaliser.config().enabled {
             return None;
         }
-        let map = &self.map;
-        let fusion = self.config.fusion;
         let fused = self.counts.fused();
-        self.relocaliser.place(
-            &self.pyramid,
-            Model {
-                map,
-                seen: 0..start,
-                include: |i| fusion.predicts(map, i, fused),
-                far_m: self.config.depth.max_m,
-            },
-            Trackers {
-                normal: &self.config.tracker,
-                wide: &self.recovery,
-                min_conditioning: RECOVERY_MIN_CONDITIONING,
-            },
-            &mut self.tracker,
-            0..start,
-        )
+        self.place_by_keyframes(0..start, fused)
     }
 
     /// The frame placed against the surfels last seen before frame
