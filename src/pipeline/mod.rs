@@ -18,6 +18,7 @@ mod report;
 mod segments;
 mod settings_check;
 mod state;
+mod velocity;
 
 pub use config::{preset_tracker, PipelineError, SlamConfig, DEFAULT_RESTART_AFTER_LOST};
 pub use localise::Localisation;
@@ -538,42 +539,6 @@ impl Pipeline {
         }
         self.place_current(pose);
         self.relocaliser.remember(pose, self.frame_index);
-    }
-
-    /// The next frame's constant-velocity motion, from the frame just
-    /// fused at `pose` (`held_at_guess`: some of its directions were kept
-    /// at the constant-velocity guess) and the one before it at `before`:
-    /// the step between them,
-    /// except for a measured frame after a held run, whose step corrects
-    /// what the run drifted and as a velocity would repeat that correction
-    /// every frame of the next held run (the synthetic room at 256x192
-    /// without colour: 9.7 cm a frame, 230 cm in 22 frames). That step
-    /// keeps its rotation, which held frames measure, and moves the camera
-    /// centre by its mean per frame since the last measured frame.
-    fn motion_since_measured(
-        &self,
-        before: DAffine3,
-        pose: &DAffine3,
-        held_at_guess: bool,
-    ) -> DAffine3 {
-        let step = before.inverse() * *pose;
-        let after_held_run = match self.measured_frame {
-            Some(m) if !held_at_guess && m < self.placed_frame => Some(m),
-            _ => None,
-        };
-        let Some(m) = after_held_run else {
-            return step;
-        };
-        let (Some(&(_, start)), Some(frames)) = (
-            self.trajectory.get(m as usize),
-            self.frame_index.checked_sub(m).filter(|&n| n > 0),
-        ) else {
-            return step;
-        };
-        // Held frames measure the rotation, not the slide: the step keeps
-        // its rotation, its translation is the camera centre's mean since.
-        let mean_world = (pose.translation - start.translation) / f64::from(frames);
-        DAffine3::from_mat3_translation(step.matrix3, before.matrix3.transpose() * mean_world)
     }
 
     /// The current frame becomes the placed one, at `pose`: the

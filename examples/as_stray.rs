@@ -1,0 +1,167 @@
+//! Writes a sequence with ground truth (TUM, ICL-NUIM, 7-Scenes) as a Stray
+//! Scanner export, the nearest thing here to an iPhone LiDAR scan with
+//! exact truth (issue #52): depth sampled down to 256x192 (nearest pixel)
+//! in millimetres, a confidence image (0 where there is no depth, with
+//! `--edges` at depth edges and with `--far M` beyond M metres, as ARKit
+//! marks them; 2 elsewhere), the
+//! intrinsics at the colour camera's 1920x1440 in `camera_matrix.csv`, and
+//! the ground truth as `odometry.csv` (15 columns, the last two empty). No
+//! `rgb/`: the scan is depth only, as a Stray scan runs natively.
+//! `surfel-slam run OUT` then reads it with no option and reports its
+//! difference from the "device's odometry", which here is the truth.
+//!
+//! ICL-NUIM's upward image y axis (fy < 0) is turned into the usual one by
+//! flipping the rows: the camera frame, so the poses, stay as they are.
+//!
+//! `cargo run --release --example as_stray -- IN OUT [--noisy] [--edges] [--far M]`
+//! (`--noisy`: Kinect-v1 structured-light noise on the full-size depth
+//! before sampling, frame i drawn from seed i; harsher than ARKit's
+//! smoothed depth).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use image::{ImageBuffer, Luma};
+use surfel_slam::dataset::{read_frame, Sequence};
+use surfel_slam::synthetic::StructuredLight;
+use surfel_slam::SlamConfig;
+
+const W: usize = 256;
+const H: usize = 192;
+/// Colour width over depth width in a Stray export (1920 / 256).
+const COLOUR_SCALE: f64 = 7.5;
+/// A depth step to a 4-neighbour beyond this share of the depth marks an
+/// edge pixel low-confidence.
+const EDGE_STEP: f32 = 0.05;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let (Some(input), Some(output)) = (args.get(1), args.get(2)) else {
+        return Err("usage: as_stray IN OUT [--noisy] [--edges] [--far M]".into());
+    };
+    let (input, output) = (Path::new(input), Path::new(output));
+    let noisy = args.iter().any(|a| a == "--noisy");
+    let edges = args.iter().any(|a| a == "--edges");
+    let far_m: f32 = args
+        .iter()
+        .position(|a| a == "--far")
+        .and_then(|i| args.get(i + 1))
+        .map_or(Ok(f32::INFINITY), |s| s.parse())?;
+    let sequence = Sequence::open(input)?;
+    let config = SlamConfig::from_preset(sequence.preset);
+    let k = sequence.intrinsics.unwrap_or(config.intrinsics);
+    let (sx, sy) = (W as f64 / k.width as f64, H as f64 / k.height as f64);
+    let flip = k.fy < 0.0;
+    for sub in ["depth", "confidence"] {
+        std::fs::create_dir_all(output.join(sub))?;
+    }
+    // Pixel centres scale about the image's corner: c' = (c + 0.5) s - 0.5.
+    let fx = f64::from(k.fx) * sx;
+    let fy = f64::from(k.fy.abs()) * sy;
+    let cx = (f64::from(k.cx) + 0.5) * sx - 0.5;
+    let cy_in = if flip {
+        k.height as f64 - 1.0 - f64::from(k.cy)
+    } else {
+        f64::from(k.cy)
+    };
+    let cy = (cy_in + 0.5) * sy - 0.5;
+    let c = COLOUR_SCALE;
+    std::fs::write(
+        output.join("camera_matrix.csv"),
+        format!(
+            "{}, 0.0, {}\n0.0, {}, {}\n0.0, 0.0, 1.0\n",
+            fx * c,
+            cx * c,
+            fy * c,
+            cy * c
+        ),
+    )?;
+    let mut odometry = String::from(
+        "timestamp, frame, x, y, z, qx, qy, qz, qw, fx, fy, cx, cy, distortion_center_x, distortion_center_y\n",
+    );
+    let noise = StructuredLight::kinect();
+    let mut written = 0usize;
+    for entry in &sequence.frames {
+        let Some(gt) = sequence.ground_truth_for(entry.timestamp, 0.02) else {
+            continue;
+        };
+        let frame = read_frame(input, entry, &config.depth)?;
+        let depth = if noisy {
+            noise
+                .measured(
+                    &frame,
+                    &frame.depth_m,
+                    &k,
+                    (written as u64, config.depth.max_m),
+                )
+                .depth_m
+        } else {
+            frame.depth_m
+        };
+        let mut sampled = vec![0f32; W * H];
+        for v in 0..H {
+            let src_v = (((v as f64 + 0.5) / sy - 0.5).round() as usize).min(k.height - 1);
+            let src_v = if flip { k.height - 1 - src_v } else { src_v };
+            for u in 0..W {
+                let src_u = (((u as f64 + 0.5) / sx - 0.5).round() as usize).min(k.width - 1);
+                sampled[v * W + u] = depth[src_v * k.width + src_u];
+            }
+        }
+        let mut confidence = vec![0u8; W * H];
+        for v in 0..H {
+            for u in 0..W {
+                let z = sampled[v * W + u];
+                if z <= 0.0 {
+                    continue;
+                }
+                let step = [(0i64, 1i64), (0, -1), (1, 0), (-1, 0)]
+                    .iter()
+                    .filter_map(|&(du, dv)| {
+                        let (nu, nv) = (u as i64 + du, v as i64 + dv);
+                        let inside = nu >= 0 && nv >= 0 && (nu as usize) < W && (nv as usize) < H;
+                        inside.then(|| sampled[nv as usize * W + nu as usize])
+                    })
+                    .map(|n| if n > 0.0 { (n - z).abs() } else { z })
+                    .fold(0f32, f32::max);
+                confidence[v * W + u] = if z > far_m || (edges && step > EDGE_STEP * z) {
+                    0
+                } else {
+                    2
+                };
+            }
+        }
+        let mm: Vec<u16> = sampled
+            .iter()
+            .map(|&z| (f64::from(z) * 1000.0).round().clamp(0.0, 65535.0) as u16)
+            .collect();
+        ImageBuffer::<Luma<u16>, _>::from_raw(W as u32, H as u32, mm)
+            .unwrap()
+            .save(output.join(format!("depth/{written:06}.png")))?;
+        ImageBuffer::<Luma<u8>, _>::from_raw(W as u32, H as u32, confidence)
+            .unwrap()
+            .save(output.join(format!("confidence/{written:06}.png")))?;
+        let q = glam::DQuat::from_mat3(&gt.matrix3);
+        let t = gt.translation;
+        writeln!(
+            odometry,
+            "{}, {written}, {}, {}, {}, {}, {}, {}, {}, {}, {}, {}, {}, , ",
+            entry.timestamp,
+            t.x,
+            t.y,
+            t.z,
+            q.x,
+            q.y,
+            q.z,
+            q.w,
+            fx * c,
+            fy * c,
+            cx * c,
+            cy * c
+        )?;
+        written += 1;
+    }
+    std::fs::write(output.join("odometry.csv"), odometry)?;
+    println!("{written} frames written to {}", output.display());
+    Ok(())
+}
