@@ -58,20 +58,20 @@ impl Pipeline {
     /// [`HELD_RUN_ENTRY_STEPS`] steps (world frame, metres), the last one
     /// to `pose`; `None` while the trajectory is shorter.
     fn median_step(&self, pose: &DAffine3) -> Option<DVec3> {
-        let n = HELD_RUN_ENTRY_STEPS;
         let recent = self
             .trajectory
-            .get(self.trajectory.len().checked_sub(n)?..)?;
-        let centres: Vec<DVec3> = recent
-            .iter()
-            .map(|(_, p)| p.translation)
-            .chain([pose.translation])
-            .collect();
-        let steps: Vec<DVec3> = centres.windows(2).map(|w| w[1] - w[0]).collect();
+            .get(self.trajectory.len().checked_sub(HELD_RUN_ENTRY_STEPS)?..)?;
+        let next = |i: usize| {
+            recent
+                .get(i + 1)
+                .map_or(pose.translation, |(_, p)| p.translation)
+        };
+        let steps: [DVec3; HELD_RUN_ENTRY_STEPS] =
+            std::array::from_fn(|i| next(i) - recent[i].1.translation);
         let median = |axis: fn(&DVec3) -> f64| {
-            let mut values: Vec<f64> = steps.iter().map(axis).collect();
+            let mut values = steps.map(|v| axis(&v));
             values.sort_by(f64::total_cmp);
-            values[values.len() / 2]
+            values[HELD_RUN_ENTRY_STEPS / 2]
         };
         Some(DVec3::new(
             median(|v| v.x),
