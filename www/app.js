@@ -194,9 +194,19 @@ function syncStatus() {
 }
 
 function noteColourDecoder(msg) {
+  if (msg.videoError) {
+    // Said once a run: the frames after it fail alike (a video shorter than the scan, a decoder that gave up).
+    if (status.framesVideoFailed++ === 0) {
+      const line = `colour: ${msg.videoError}; frames without it play on depth alone`;
+      status.warnings.push(line);
+      board.report(line, 'warning');
+      status.shownErrors = board.texts();
+    }
+  }
   if (!msg.colourDecoder) return;
   status.colourDecoder = msg.colourDecoder;
   if (msg.colourDecoder === 'browser') status.framesColourDecodedInBrowser++;
+  if (msg.colourDecoder === 'video') status.framesColourFromVideo++;
 }
 
 function countRunFrame(msg) {
@@ -309,6 +319,8 @@ function clearMap() {
   status.fpsAverage = 0;
   status.colourDecoder = null;
   status.framesColourDecodedInBrowser = 0;
+  status.framesColourFromVideo = 0;
+  status.framesVideoFailed = 0;
   run = { first: 0, frames: 0 };
   sequence?.groundTruth.unanchor();
   status.positionErrorCm = null;
@@ -408,7 +420,10 @@ const handlers = {
       : odometry.length
         ? `, no ground truth, the device's odometry ${odometry.length} poses`
         : ', no ground truth';
-    sequence.line = `${msg.name} — ${msg.kind}, ${msg.frameCount} frames${gt}, camera ${msg.preset}`;
+    // A scan without colour images says once where its colour comes from, or that it has none.
+    status.colourNote = msg.colourNote ?? null;
+    const colour = msg.colourNote ? `; ${msg.colourNote}` : '';
+    sequence.line = `${msg.name} — ${msg.kind}, ${msg.frameCount} frames${gt}, camera ${msg.preset}${colour}`;
     ui.sequenceInfo.textContent = sequence.line;
     for (const w of msg.warnings ?? []) reportWarning(w);
     if (msg.session) showSession(openedSession ?? msg.name, msg.session);

@@ -5,6 +5,7 @@
 // The pixels are the file's own: no colour-space conversion, no alpha
 // premultiplication, RGBA8 row-major. Depth stays a 16-bit PNG decoded in
 // wasm: browsers reduce 16-bit PNGs to 8 bits.
+import { pngSize, videoOf } from './video-colour.js';
 
 /** Whether this context can decode images without a DOM. */
 export const browserCanDecode = typeof createImageBitmap === 'function' && typeof OffscreenCanvas === 'function';
@@ -91,19 +92,33 @@ export const pushedAsFiles = (frame) => frame.colour == null || frame.confidence
 
 /**
  * Reads a frame's files from a SequenceSource and decodes its colour image:
- * `{ colourBuf, depthBuf, confidenceBuf, decoded }`, `decoded` = `{ width,
- * height, rgba }` or null when wasm is to decode the colour (the browser
- * could not, or not exactly; pushFrame then decodes it or says what is wrong
- * with it, or the frame is pushed as its files); `colourBuf` null for a
- * depth-only frame, `confidenceBuf` null without a confidence image.
- * Rejects only when a file cannot be read.
+ * `{ colourBuf, depthBuf, confidenceBuf, decoded, videoError }`, `decoded` =
+ * `{ width, height, rgba }` or null when wasm is to decode the colour (the
+ * browser could not, or not exactly; pushFrame then decodes it or says what
+ * is wrong with it, or the frame is pushed as its files); `colourBuf` null
+ * for a depth-only frame, `confidenceBuf` null without a confidence image.
+ * `video` (`{path, index}`, a frame without a colour image): its colour is
+ * frame `index` of that video, drawn at the depth's size as a PNG
+ * (video-colour.js); when it cannot be, the frame stays depth-only and
+ * `videoError` says why. Rejects only when a file cannot be read.
  */
-export async function readAndDecodeColour(source, { colour, depth, confidence }, decode = true) {
-  const [colourBuf, depthBuf, confidenceBuf] = await Promise.all([
+export async function readAndDecodeColour(source, { colour, depth, confidence, video }, decode = true) {
+  let [colourBuf, depthBuf, confidenceBuf] = await Promise.all([
     colour == null ? null : source.read(colour),
     source.read(depth),
     confidence == null ? null : source.read(confidence),
   ]);
+  let videoError = null;
+  if (video && colour == null) {
+    try {
+      const size = pngSize(depthBuf);
+      if (!size) throw new Error(`${depth} is not a PNG`);
+      colourBuf = await (await videoOf(source, video.path)).png(video.index, size);
+    } catch (e) {
+      videoError = `${video.path}: ${e && e.message ? e.message : String(e)}`;
+    }
+  }
+  if (videoError) return { colourBuf, depthBuf, confidenceBuf, decoded: null, videoError };
   let decoded = null;
   if (decode && browserCanDecode && colourBuf && !pushedAsFiles({ colour, confidence })) {
     try {
@@ -112,5 +127,5 @@ export async function readAndDecodeColour(source, { colour, depth, confidence },
       decoded = null;
     }
   }
-  return { colourBuf, depthBuf, confidenceBuf, decoded };
+  return { colourBuf, depthBuf, confidenceBuf, decoded, videoError };
 }

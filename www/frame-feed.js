@@ -18,7 +18,7 @@ export class FrameFeed {
     this.waiting = new Map(); // `${id}:${index}` -> {resolve, reject, source, frame}
     this.prefetched = new Map(); // `${id}:${index}` -> promise of the frame's bytes and decoded colour
     this.readAheadUntil = 0; // frames before this index have been asked for
-    this.seq = null; // {id, source, frames}
+    this.seq = null; // {id, source, frames, video}
   }
 
   /** Starts the frame reader's worker; without one, frames are read on this thread. */
@@ -36,7 +36,7 @@ export class FrameFeed {
       if (!waiting) return; // the sequence was replaced or reset meanwhile
       this.waiting.delete(key);
       if (data.error !== undefined) waiting.reject(new Error(data.error));
-      else waiting.resolve({ colourBuf: data.colourBuf, depthBuf: data.depthBuf, confidenceBuf: data.confidenceBuf ?? null, decoded: data.decoded });
+      else waiting.resolve({ colourBuf: data.colourBuf, depthBuf: data.depthBuf, confidenceBuf: data.confidenceBuf ?? null, decoded: data.decoded, videoError: data.videoError ?? null });
     };
     this.reader.onerror = (e) => {
       // The reader cannot run (or died): read on this thread from now on.
@@ -45,7 +45,7 @@ export class FrameFeed {
       this.reader = null;
       for (const [key, w] of this.waiting) {
         this.waiting.delete(key);
-        readAndDecodeColour(w.source, w.frame, this.decodeColour).then(w.resolve, w.reject);
+        readAndDecodeColour(w.source, w.request, this.decodeColour).then(w.resolve, w.reject);
       }
     };
   }
@@ -55,9 +55,14 @@ export class FrameFeed {
     return this.reader !== null;
   }
 
-  /** A new sequence: `entries` as for openSource, `source` opened on this thread, `frames` parseSequence's. */
-  setSequence(id, entries, source, frames) {
-    this.seq = { id, source, frames };
+  /**
+   * A new sequence: `entries` as for openSource, `source` opened on this
+   * thread, `frames` parseSequence's; `video` the path of the video that
+   * colours its frames without a colour image (a Stray Scanner rgb.mp4 the
+   * browser decodes), or null.
+   */
+  setSequence(id, entries, source, frames, video = null) {
+    this.seq = { id, source, frames, video };
     this.waiting.clear();
     this.restart();
     this.reader?.postMessage({ type: ToReader.SOURCE, id, entries });
@@ -103,15 +108,16 @@ export class FrameFeed {
   }
 
   load(index) {
-    const { id, source, frames } = this.seq;
-    const frame = frames[index];
+    const { id, source, frames, video } = this.seq;
+    const { colour, depth, confidence } = frames[index];
+    // Frame i of the video colours frame i of a sequence without colour images.
+    const request = { colour, depth, confidence: confidence ?? null, video: video && colour == null ? { path: video, index } : null };
     let promise;
     if (this.reader) {
-      promise = new Promise((resolve, reject) => this.waiting.set(`${id}:${index}`, { resolve, reject, source, frame }));
-      const { colour, depth, confidence } = frame;
-      this.reader.postMessage({ type: ToReader.READ, id, index, colour, depth, confidence: confidence ?? null, decode: this.decodeColour });
+      promise = new Promise((resolve, reject) => this.waiting.set(`${id}:${index}`, { resolve, reject, source, request }));
+      this.reader.postMessage({ type: ToReader.READ, id, index, ...request, decode: this.decodeColour });
     } else {
-      promise = readAndDecodeColour(source, frame, this.decodeColour);
+      promise = readAndDecodeColour(source, request, this.decodeColour);
     }
     promise.catch(() => {}); // handled by whoever awaits it
     return promise;

@@ -43,9 +43,9 @@ export const ToWorker = Object.freeze({
 export const FromWorker = Object.freeze({
   /** {module: 'threads'|'simd', threads, presets, notes, frameReader}: the module is loaded. */
   READY: 'ready',
-  /** {name, kind, preset, config, frameCount, groundTruth, odometry, fileCount, warnings, session?}: a sequence was opened (session: as SESSION_OPENED's, when it goes on from an opened session) (warnings: camera settings that do not fit its layout). */
+  /** {name, kind, preset, config, frameCount, groundTruth, odometry, fileCount, warnings, colourNote, session?}: a sequence was opened (session: as SESSION_OPENED's, when it goes on from an opened session) (warnings: camera settings that do not fit its layout; colourNote: where a sequence without colour images gets its colour, or that it plays on depth alone and why, else null). */
   SEQUENCE: 'sequence',
-  /** {index, frameCount, timestamp, result, surfels, refresh, ate, wasmMemoryBytes, timing, input, flow, done}: one frame processed (wasmMemoryBytes: the module's linear memory, its peak). */
+  /** {index, frameCount, timestamp, result, surfels, refresh, ate, wasmMemoryBytes, timing, input, flow, colourDecoder, videoError, done}: one frame processed (wasmMemoryBytes: the module's linear memory, its peak; colourDecoder: 'browser', 'wasm' or 'video'; videoError: why its colour could not be taken from the video). */
   FRAME: 'frame',
   /** {index, message, frameCount, input?}: one frame skipped (unreadable or refused). */
   FRAME_ERROR: 'frame-error',
@@ -75,11 +75,11 @@ export const FromWorker = Object.freeze({
   FATAL: 'fatal',
 });
 
-/** SLAM worker -> frame reader (`{type, ...fields}`); the reader answers `{id, index, colourBuf, depthBuf, decoded}` or `{id, index, error}`. */
+/** SLAM worker -> frame reader (`{type, ...fields}`); the reader answers `{id, index, colourBuf, depthBuf, confidenceBuf, decoded, videoError}` or `{id, index, error}`. */
 export const ToReader = Object.freeze({
   /** {id, entries}: the current sequence's files: a folder's or one archive (as for openSource). */
   SOURCE: 'source',
-  /** {id, index, colour, depth, decode}: read (and decode the colour of) one frame. */
+  /** {id, index, colour, depth, confidence, video: {path, index} | null, decode}: read (and decode the colour of) one frame (video: its colour is that video's frame). */
   READ: 'read',
   /** {id, paths}: read these files now, keep the bytes for a later READ. */
   READ_AHEAD: 'readAhead',

@@ -25,6 +25,7 @@ import { openSource } from './sequence.js';
 import { PREVIEW_WIDTH, PREVIEW_HEIGHT, pushedAsFiles } from './colour-decode.js';
 import { errorText, isModuleFailure, startModule as loadModule, toPlain } from './wasm-module.js';
 import { FrameFeed, describeFrameError } from './frame-feed.js';
+import { probeVideo } from './video-colour.js';
 import { copyChanged, RollingRefresh, surfelBuffers } from './surfel-copy.js';
 import { coversWholeMap } from './surfel-buffers.js';
 import { answerExport } from './worker-exports.js';
@@ -211,6 +212,27 @@ function reportState(extra = {}) {
 
 // ---- loading a sequence -----------------------------------------------------
 
+/**
+ * Where a sequence without colour images (a Stray Scanner scan) gets its
+ * colour: `{video, note}`, `video` the path of its rgb.mp4 (beside depth/)
+ * when this browser decodes it, else null; `note` says which, or why the
+ * scan plays on depth alone (null for a sequence with colour images).
+ */
+async function colourOfScan(frames, paths, source) {
+  if (!frames.length || frames.some((f) => f.colour != null)) return { video: null, note: null };
+  const folder = frames[0].depth.split('/').slice(0, -2).join('/');
+  const path = folder ? `${folder}/rgb.mp4` : 'rgb.mp4';
+  const alone = 'playing on depth alone (grey map)';
+  if (!paths.includes(path)) return { video: null, note: `no colour images or rgb.mp4: ${alone}` };
+  try {
+    const video = await probeVideo(await source.read(path));
+    const past = video.frames < frames.length ? `; the ${frames.length - video.frames} frames past its end on depth alone` : '';
+    return { video: path, note: `colour from ${path} (${video.codec}, ${video.width}x${video.height}, ${video.frames} frames)${past}` };
+  } catch (e) {
+    return { video: null, note: `${path}: ${errorText(e)}: ${alone}` };
+  }
+}
+
 async function load({ name, entries, autoplay, options }) {
   await freshModule();
   let source;
@@ -263,11 +285,12 @@ async function load({ name, entries, autoplay, options }) {
   // The recording device's own trajectory (Stray Scanner: ARKit's), drawn like ground truth but named as what it is.
   const odometry = (parsed.odometry || []).map((row) => Array.from(row));
   // Slam.ate reads the ground truth as TUM text ('' when there is none).
-  seq = { id: ++seqCounter, name, kind: parsed.kind, source, frames: parsed.frames, gtTum: parsed.groundTruthTum || null, layoutPreset: preset };
+  const colour = await colourOfScan(parsed.frames, paths, source);
+  seq = { id: ++seqCounter, name, kind: parsed.kind, source, frames: parsed.frames, gtTum: parsed.groundTruthTum || null, layoutPreset: preset, video: colour.video };
   // The sequence a session was saved from (its download is <sequence>.slam)
   // continues at the frame after the session's last; another starts at its first.
   if (continued && !session.localise && sessionStem(session.name) === name) next = Math.min(slam.frames, seq.frames.length);
-  feed.setSequence(seq.id, entries, source, seq.frames);
+  feed.setSequence(seq.id, entries, source, seq.frames, seq.video);
   post({
     type: FromWorker.SEQUENCE,
     name,
@@ -279,6 +302,7 @@ async function load({ name, entries, autoplay, options }) {
     odometry,
     fileCount: paths.length,
     warnings: layoutWarnings(preset),
+    colourNote: colour.note,
     session: continued,
   });
   playing = !!autoplay;
@@ -405,18 +429,21 @@ async function processNext() {
   }
   const t0 = performance.now();
   const reading = feed.read(index);
-  let colourBuf, depthBuf, confidenceBuf, decoded;
+  let colourBuf, depthBuf, confidenceBuf, decoded, videoError;
   try {
-    ({ colourBuf, depthBuf, confidenceBuf, decoded } = await reading);
+    ({ colourBuf, depthBuf, confidenceBuf, decoded, videoError } = await reading);
   } catch (e) {
     post({ type: FromWorker.FRAME_ERROR, index, message: errorText(e), frameCount: seq.frames.length });
     return;
   }
   const tRead = performance.now();
-  // A depth-only frame (Stray Scanner without rgb/) has no colour image.
+  // A depth-only frame (Stray Scanner without rgb/) has no colour image, or
+  // one drawn from the scan's video (seq.video).
   const colour = colourBuf ? new Uint8Array(colourBuf) : null;
   const depth = new Uint8Array(depthBuf);
-  const colourDecoder = decoded ? 'browser' : 'wasm';
+  const fromVideo = colour !== null && frame.colour == null;
+  const colourName = fromVideo ? `${seq.video} frame ${index}` : (frame.colour ?? null);
+  const colourDecoder = fromVideo ? 'video' : decoded ? 'browser' : 'wasm';
   let r;
   try {
     if (testBreak) {
@@ -431,7 +458,7 @@ async function processNext() {
       for (;;);
     }
     const report = pushedAsFiles(frame)
-      ? slam.pushFiles(colour, depth, confidenceBuf ? new Uint8Array(confidenceBuf) : null, [frame.colour ?? null, frame.depth, frame.confidence ?? null], frame.timestamp)
+      ? slam.pushFiles(colour, depth, confidenceBuf ? new Uint8Array(confidenceBuf) : null, [colourName, frame.depth, frame.confidence ?? null], frame.timestamp)
       : decoded
         ? slam.pushRgbaDepthPng(decoded.width, decoded.height, decoded.rgba, depth, frame.timestamp)
         : slam.pushFrame(colour, depth, frame.timestamp);
@@ -489,10 +516,11 @@ async function processNext() {
       index,
       frameCount: seq.frames.length,
       timestamp: frame.timestamp,
-      colourPath: frame.colour,
+      colourPath: colourName,
       depthPath: frame.depth,
       result: r,
       colourDecoder,
+      videoError,
       surfels,
       refresh: refreshed,
       trajectoryTum,
