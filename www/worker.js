@@ -261,6 +261,8 @@ async function load({ name, entries, autoplay, options }) {
     reportState();
     return;
   }
+  // Before anything changes: the sequence playing goes on while the video is probed.
+  const colour = await colourOfScan(parsed.frames, paths, source);
   const preset = presetName(parsed.preset);
   const newConfig = { preset };
   if (parsed.preset && typeof parsed.preset === 'object') Object.assign(newConfig, parsed.preset);
@@ -285,7 +287,6 @@ async function load({ name, entries, autoplay, options }) {
   // The recording device's own trajectory (Stray Scanner: ARKit's), drawn like ground truth but named as what it is.
   const odometry = (parsed.odometry || []).map((row) => Array.from(row));
   // Slam.ate reads the ground truth as TUM text ('' when there is none).
-  const colour = await colourOfScan(parsed.frames, paths, source);
   seq = { id: ++seqCounter, name, kind: parsed.kind, source, frames: parsed.frames, gtTum: parsed.groundTruthTum || null, layoutPreset: preset, video: colour.video };
   // The sequence a session was saved from (its download is <sequence>.slam)
   // continues at the frame after the session's last; another starts at its first.
