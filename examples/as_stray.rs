@@ -13,7 +13,10 @@
 //! ICL-NUIM's upward image y axis (fy < 0) is turned into the usual one by
 //! flipping the rows: the camera frame, so the poses, stay as they are.
 //!
-//! `cargo run --release --example as_stray -- IN OUT [--noisy] [--edges] [--far M]`
+//! `cargo run --release --example as_stray -- IN OUT [--noisy] [--edges] [--far M] [--interpolate]`
+//! (`--interpolate`: each depth at its pixel's exact source position, inverse
+//! depth interpolated bilinearly (exact on planes) instead of the nearest
+//! source pixel's, up to a quarter pixel off)
 //! (`--noisy`: Kinect-v1 structured-light noise on the full-size depth
 //! before sampling, frame i drawn from seed i; harsher than ARKit's
 //! smoothed depth).
@@ -35,14 +38,49 @@ const COLOUR_SCALE: f64 = 7.5;
 /// edge pixel low-confidence.
 const EDGE_STEP: f32 = 0.05;
 
+/// Depth at source position `(x, y)` (pixel centres at integers): inverse
+/// depth interpolated bilinearly, exact on a plane, where the four pixels
+/// around hold depth within [`EDGE_STEP`] of each other; else the nearest
+/// pixel's (a silhouette is not bridged).
+fn depth_at(depth: &[f32], (width, height): (usize, usize), x: f64, y: f64) -> f32 {
+    let (x, y) = (
+        x.clamp(0.0, (width - 1) as f64),
+        y.clamp(0.0, (height - 1) as f64),
+    );
+    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+    let (x1, y1) = ((x0 + 1).min(width - 1), (y0 + 1).min(height - 1));
+    let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+    let z = [
+        depth[y0 * width + x0],
+        depth[y0 * width + x1],
+        depth[y1 * width + x0],
+        depth[y1 * width + x1],
+    ];
+    let (lo, hi) = z
+        .iter()
+        .fold((f32::INFINITY, 0f32), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+    if lo <= 0.0 || hi - lo > EDGE_STEP * lo {
+        return depth[(y.round() as usize) * width + x.round() as usize];
+    }
+    let w = [
+        (1.0 - fx) * (1.0 - fy),
+        fx * (1.0 - fy),
+        (1.0 - fx) * fy,
+        fx * fy,
+    ];
+    let inverse: f32 = z.iter().zip(w).map(|(d, w)| w / d).sum();
+    1.0 / inverse
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let (Some(input), Some(output)) = (args.get(1), args.get(2)) else {
-        return Err("usage: as_stray IN OUT [--noisy] [--edges] [--far M]".into());
+        return Err("usage: as_stray IN OUT [--noisy] [--edges] [--far M] [--interpolate]".into());
     };
     let (input, output) = (Path::new(input), Path::new(output));
     let noisy = args.iter().any(|a| a == "--noisy");
     let edges = args.iter().any(|a| a == "--edges");
+    let nearest = !args.iter().any(|a| a == "--interpolate");
     let far_m: f32 = args
         .iter()
         .position(|a| a == "--far")
@@ -101,11 +139,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         let mut sampled = vec![0f32; W * H];
         for v in 0..H {
-            let src_v = (((v as f64 + 0.5) / sy - 0.5).round() as usize).min(k.height - 1);
-            let src_v = if flip { k.height - 1 - src_v } else { src_v };
+            let y = (v as f64 + 0.5) / sy - 0.5;
+            let y = if flip { (k.height - 1) as f64 - y } else { y };
             for u in 0..W {
-                let src_u = (((u as f64 + 0.5) / sx - 0.5).round() as usize).min(k.width - 1);
-                sampled[v * W + u] = depth[src_v * k.width + src_u];
+                let x = (u as f64 + 0.5) / sx - 0.5;
+                sampled[v * W + u] = if nearest {
+                    depth[(y.round() as usize).min(k.height - 1) * k.width
+                        + (x.round() as usize).min(k.width - 1)]
+                } else {
+                    depth_at(&depth, (k.width, k.height), x, y)
+                };
             }
         }
         let mut confidence = vec![0u8; W * H];
