@@ -10,7 +10,7 @@ import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
 import { startBrowser, openPage, openModulePage, waitForStatus, saveScreenshot, skipUnlessReady, canvasPng, decodePng } from './helpers.mjs';
-import { CLIP, makeStray, tempDir } from '../node/datasets.mjs';
+import { CLIP, makeStray, tempDir, writeArchive } from '../node/datasets.mjs';
 import { writeMp4 } from '../node/mp4-writer.mjs';
 
 const FRAMES = 12;
@@ -180,11 +180,12 @@ test('a Stray Scanner scan plays in colour from its rgb.mp4; a video the browser
     const { page, consoleErrors } = await openPage(env, '/?sample=0');
     await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
     const hevcSupported = await page.evaluate(async () => (await VideoDecoder.isConfigSupported({ codec: 'hvc1.1.6.L93.B0' })).supported);
-    /** The scan as folder `name`, with `video` as its rgb.mp4 (none when null), played to its end. */
-    const play = async (name, video) => {
+    /** The scan as folder `name` (or a .zip of it), with `video` as its rgb.mp4 (none when null), played to its end. */
+    const play = async (name, video, zipped = false) => {
       const { dir, poses } = makeStray(CLIP, FRAMES, tmp, name);
       if (video) fs.writeFileSync(path.join(dir, 'rgb.mp4'), typeof video === 'function' ? await video(poses) : video);
-      await page.locator('#folder-input').setInputFiles(dir);
+      if (zipped) await page.locator('#archive-input').setInputFiles(writeArchive(dir, name, tmp, 'zip'));
+      else await page.locator('#folder-input').setInputFiles(dir);
       const status = await waitForStatus(page, (s) => s.sequence === name && s.done && !s.playing && s.framesProcessed === FRAMES, {
         timeoutMs: 120_000,
         log: (m) => t.diagnostic(m),
@@ -206,6 +207,11 @@ test('a Stray Scanner scan plays in colour from its rgb.mp4; a video the browser
     assert.match(inColour.info, /colour from scan_h264\/rgb\.mp4 \(avc1\.42\w{4}, 640x480, 12 frames\)/);
     assert.equal(inColour.status.framesColourFromVideo, FRAMES);
     assert.equal(inColour.status.framesVideoFailed, 0);
+
+    // Dropped as a zip: the video read out of the archive.
+    const zipped = await play('scan_zip', (poses) => h264Mp4(page, colourFiles(poses)), true);
+    assert.match(zipped.info, /colour from scan_zip\/rgb\.mp4 \(avc1/);
+    assert.equal(zipped.status.framesColourFromVideo, FRAMES);
 
     const notVideo = await play('scan_text', 'a file that is no video');
     assert.match(notVideo.info, /scan_text\/rgb\.mp4: not an MP4 file .*: playing on depth alone \(grey map\)/);
