@@ -4,7 +4,8 @@
 // i-th in presentation order, drawn at the depth's size and handed to wasm as
 // a PNG, as the CLI reads an `rgb/` folder of extracted frames. Used by the
 // frame reader (or the SLAM worker when the reader cannot start); the SLAM
-// worker asks probeVideo first, and plays on depth alone when it refuses.
+// worker asks colourOfScan when a scan opens, and plays on depth alone when
+// the browser cannot decode the video.
 import { parseMp4 } from './mp4.js';
 
 /** Whether this context has WebCodecs' video decoder and a canvas to draw its frames on. */
@@ -23,6 +24,28 @@ export async function probeVideo(bytes) {
   const support = await VideoDecoder.isConfigSupported(decoderConfig(video)).catch(() => ({ supported: false }));
   if (!support.supported) throw new Error(`this browser cannot decode ${video.codec} video`);
   return { codec: video.codec, width: video.width, height: video.height, frames: video.samples.length };
+}
+
+/**
+ * Where a sequence without colour images (a Stray Scanner scan) gets its
+ * colour: `{video, note}`, `video` the path of its rgb.mp4 (beside depth/)
+ * when this browser decodes it, else null; `note` says which, or why the
+ * scan plays on depth alone (null for a sequence with colour images).
+ * `source` a SequenceSource or ArchiveSource holding `paths`.
+ */
+export async function colourOfScan(frames, paths, source) {
+  if (!frames.length || frames.some((f) => f.colour != null)) return { video: null, note: null };
+  const folder = frames[0].depth.split('/').slice(0, -2).join('/');
+  const path = folder ? `${folder}/rgb.mp4` : 'rgb.mp4';
+  const alone = 'playing on depth alone (grey map)';
+  if (!paths.includes(path)) return { video: null, note: `no colour images or rgb.mp4: ${alone}` };
+  try {
+    const video = await probeVideo(await source.read(path));
+    const past = video.frames < frames.length ? `; the ${frames.length - video.frames} frames past its end on depth alone` : '';
+    return { video: path, note: `colour from ${path} (${video.codec}, ${video.width}x${video.height}, ${video.frames} frames)${past}` };
+  } catch (e) {
+    return { video: null, note: `${path}: ${e && e.message ? e.message : String(e)}: ${alone}` };
+  }
 }
 
 /** Width and height of a PNG's bytes (its IHDR), or null. */

@@ -25,7 +25,7 @@ import { openSource } from './sequence.js';
 import { PREVIEW_WIDTH, PREVIEW_HEIGHT, pushedAsFiles } from './colour-decode.js';
 import { errorText, isModuleFailure, startModule as loadModule, toPlain } from './wasm-module.js';
 import { FrameFeed, describeFrameError } from './frame-feed.js';
-import { probeVideo } from './video-colour.js';
+import { colourOfScan } from './video-colour.js';
 import { copyChanged, RollingRefresh, surfelBuffers } from './surfel-copy.js';
 import { coversWholeMap } from './surfel-buffers.js';
 import { answerExport } from './worker-exports.js';
@@ -211,27 +211,6 @@ function reportState(extra = {}) {
 }
 
 // ---- loading a sequence -----------------------------------------------------
-
-/**
- * Where a sequence without colour images (a Stray Scanner scan) gets its
- * colour: `{video, note}`, `video` the path of its rgb.mp4 (beside depth/)
- * when this browser decodes it, else null; `note` says which, or why the
- * scan plays on depth alone (null for a sequence with colour images).
- */
-async function colourOfScan(frames, paths, source) {
-  if (!frames.length || frames.some((f) => f.colour != null)) return { video: null, note: null };
-  const folder = frames[0].depth.split('/').slice(0, -2).join('/');
-  const path = folder ? `${folder}/rgb.mp4` : 'rgb.mp4';
-  const alone = 'playing on depth alone (grey map)';
-  if (!paths.includes(path)) return { video: null, note: `no colour images or rgb.mp4: ${alone}` };
-  try {
-    const video = await probeVideo(await source.read(path));
-    const past = video.frames < frames.length ? `; the ${frames.length - video.frames} frames past its end on depth alone` : '';
-    return { video: path, note: `colour from ${path} (${video.codec}, ${video.width}x${video.height}, ${video.frames} frames)${past}` };
-  } catch (e) {
-    return { video: null, note: `${path}: ${errorText(e)}: ${alone}` };
-  }
-}
 
 async function load({ name, entries, autoplay, options }) {
   await freshModule();
