@@ -207,6 +207,18 @@ test('a Stray Scanner scan plays in colour from its rgb.mp4; a video the browser
     assert.match(inColour.info, /colour from scan_h264\/rgb\.mp4 \(avc1\.42\w{4}, 640x480, 12 frames\)/);
     assert.equal(inColour.status.framesColourFromVideo, FRAMES);
     assert.equal(inColour.status.framesVideoFailed, 0);
+    // Reset and played again: the video is decoded again from its first frame, every frame in colour.
+    await page.locator('#reset-button').click();
+    await waitForStatus(page, (s) => s.framesProcessed === 0 && !s.playing && !s.done, { timeoutMs: 30_000 });
+    await page.locator('#play-button').click();
+    const replayed = await waitForStatus(page, (s) => s.sequence === 'scan_h264' && s.done && !s.playing && s.framesProcessed === FRAMES && s.framesColourFromVideo === FRAMES, {
+      timeoutMs: 120_000,
+      log: (m) => t.diagnostic(m),
+    });
+    assert.equal(replayed.framesLost, 0);
+    assert.equal(replayed.framesVideoFailed, 0);
+    assert.equal(replayed.positionErrorCm, inColour.status.positionErrorCm, 'played again, the same run');
+    assert.equal(replayed.surfels, inColour.status.surfels, 'played again, the same map');
 
     // Dropped as a zip: the video read out of the archive.
     const zipped = await play('scan_zip', (poses) => h264Mp4(page, colourFiles(poses)), true);
