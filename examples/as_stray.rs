@@ -13,7 +13,11 @@
 //! ICL-NUIM's upward image y axis (fy < 0) is turned into the usual one by
 //! flipping the rows: the camera frame, so the poses, stay as they are.
 //!
-//! `cargo run --release --example as_stray -- IN OUT [--noisy] [--edges] [--far M] [--interpolate]`
+//! `cargo run --release --example as_stray -- IN OUT [--noisy] [--edges] [--far M] [--interpolate] [--medium M [--medium-error E]]`
+//! (`--medium M`: depth beyond M metres at confidence 1, and off by a
+//! smooth error field of amplitude E (default 0.015) times its depth, a
+//! new field each frame, as a time-of-flight sensor's less certain depth;
+//! `--medium-error 0` keeps it exact)
 //! (`--interpolate`: each depth at its pixel's exact source position, inverse
 //! depth interpolated bilinearly (exact on planes) instead of the nearest
 //! source pixel's, up to a quarter pixel off)
@@ -75,7 +79,7 @@ fn depth_at(depth: &[f32], (width, height): (usize, usize), x: f64, y: f64) -> f
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let (Some(input), Some(output)) = (args.get(1), args.get(2)) else {
-        return Err("usage: as_stray IN OUT [--noisy] [--edges] [--far M] [--interpolate]".into());
+        return Err("usage: as_stray IN OUT [--noisy] [--edges] [--far M] [--interpolate] [--medium M [--medium-error E]]".into());
     };
     let (input, output) = (Path::new(input), Path::new(output));
     let noisy = args.iter().any(|a| a == "--noisy");
@@ -86,6 +90,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .position(|a| a == "--far")
         .and_then(|i| args.get(i + 1))
         .map_or(Ok(f32::INFINITY), |s| s.parse())?;
+    let number_after = |flag: &str, default: f32| {
+        args.iter()
+            .position(|a| a == flag)
+            .and_then(|i| args.get(i + 1))
+            .map_or(Ok(default), |s| s.parse::<f32>())
+    };
+    let medium_m = number_after("--medium", f32::INFINITY)?;
+    let medium_error = number_after("--medium-error", 0.015)?;
     let sequence = Sequence::open(input)?;
     let config = SlamConfig::from_preset(sequence.preset);
     let k = sequence.intrinsics.unwrap_or(config.intrinsics);
@@ -169,9 +181,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     .fold(0f32, f32::max);
                 confidence[v * W + u] = if z > far_m || (edges && step > EDGE_STEP * z) {
                     0
+                } else if z > medium_m {
+                    1
                 } else {
                     2
                 };
+            }
+        }
+        // Confidence 1 is found on exact depth, then that depth is put off
+        // by a smooth field (phases from the frame number, deterministic).
+        let phase = |salt: usize| ((written * 7919 + salt * 104_729) % 1000) as f32 / 1000.0;
+        let (pu, pv) = (phase(1), phase(2));
+        for v in 0..H {
+            for u in 0..W {
+                let i = v * W + u;
+                if confidence[i] == 1 {
+                    let field = (std::f32::consts::TAU * (u as f32 / 64.0 + pu)).sin()
+                        * (std::f32::consts::TAU * (v as f32 / 48.0 + pv)).cos();
+                    sampled[i] *= 1.0 + medium_error * field;
+                }
             }
         }
         let mm: Vec<u16> = sampled

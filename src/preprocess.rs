@@ -109,6 +109,20 @@ pub struct PyramidLevel {
     pub normals: Vec<Vec3>,
     /// Grey level in 0..255.
     pub intensity: Vec<f32>,
+    /// Multiplier (>= 1) of the sensor model's depth deviation per pixel
+    /// ([`RgbdFrame::depth_deviation`]; a coarse pixel's is the mean of its
+    /// 2x2 block's); empty = 1 at every pixel.
+    pub depth_deviation: Vec<f32>,
+}
+
+impl PyramidLevel {
+    /// Multiplier of the depth deviation at pixel `i`: 1 where the level
+    /// carries none.
+    #[inline]
+    #[must_use]
+    pub fn depth_deviation_at(&self, i: usize) -> f32 {
+        self.depth_deviation.get(i).copied().unwrap_or(1.0)
+    }
 }
 
 /// Narrowest pyramid level [`FramePyramid::check_level`] samples, pixels:
@@ -156,6 +170,7 @@ impl FramePyramid {
                     vertices: vec![Vec3::ZERO; n],
                     normals: vec![Vec3::ZERO; n],
                     intensity: vec![0.0; n],
+                    depth_deviation: Vec::new(),
                 }
             })
             .collect();
@@ -226,6 +241,7 @@ impl FramePyramid {
             } else {
                 level0.depth.copy_from_slice(&frame.depth_m);
             }
+            level0.depth_deviation.clone_from(&frame.depth_deviation);
             if self.with_intensity {
                 level0
                     .intensity
@@ -254,6 +270,13 @@ impl FramePyramid {
             if self.with_intensity {
                 downsample_mean(&fine.intensity, fw, &mut coarse.intensity, cw);
             }
+            let ch = coarse.intrinsics.map_or(0, |k| k.height);
+            downsample_deviation(
+                &fine.depth_deviation,
+                fw,
+                &mut coarse.depth_deviation,
+                (cw, ch),
+            );
         }
         for (l, level) in self.levels.iter_mut().enumerate() {
             let Some(k) = level.intrinsics else {
@@ -301,6 +324,12 @@ pub fn half_resolution_into(frame: &RgbdFrame, gate_m: f32, out: &mut RgbdFrame)
     out.depth_m.resize(w * h, 0.0);
     out.rgb.resize(3 * w * h, 0);
     downsample_depth(&frame.depth_m, frame.width, &mut out.depth_m, w, gate_m);
+    downsample_deviation(
+        &frame.depth_deviation,
+        frame.width,
+        &mut out.depth_deviation,
+        (w, h),
+    );
     let fw = frame.width;
     out.rgb
         .par_chunks_mut(3 * w)
@@ -380,6 +409,17 @@ fn downsampled_depth_at(fine: &[f32], fw: usize, gate_m: f32, u: usize, v: usize
             s / n
         }
     }
+}
+
+/// [`downsample_mean`] of a depth deviation map into `coarse`, resized to
+/// `cw` x `ch`; an empty map (1 everywhere) stays empty.
+fn downsample_deviation(fine: &[f32], fw: usize, coarse: &mut Vec<f32>, (cw, ch): (usize, usize)) {
+    if fine.len() < 4 * cw * ch {
+        coarse.clear();
+        return;
+    }
+    coarse.resize(cw * ch, 1.0);
+    downsample_mean(fine, fw, coarse, cw);
 }
 
 fn downsample_mean(fine: &[f32], fw: usize, coarse: &mut [f32], cw: usize) {
@@ -484,6 +524,7 @@ mod tests {
             width: k.width,
             height: k.height,
             rgb: vec![128; 3 * k.pixel_count()],
+            depth_deviation: Vec::new(),
             depth_m: depth,
         }
     }
@@ -608,6 +649,43 @@ mod tests {
             build(&far, &constant, &SensorNoise::simulated_kinect()),
             build(&far, &following, &SensorNoise::simulated_kinect())
         );
+    }
+
+    #[test]
+    fn depth_deviation_reaches_every_level_as_block_means_and_halves_with_the_frame() {
+        let k = Intrinsics::new(50.0, 50.0, 31.5, 23.5, 64, 48);
+        let mut frame = plane_frame(&k);
+        // The right quarter of the image twice as uncertain.
+        frame.depth_deviation = (0..k.pixel_count())
+            .map(|i| if i % k.width >= 48 { 2.0 } else { 1.0 })
+            .collect();
+        let config = PreprocessConfig::default();
+        let mut pyramid = FramePyramid::new(&k, &config);
+        pyramid.build(&frame, &config, &SensorNoise::default());
+        assert_eq!(pyramid.levels[0].depth_deviation, frame.depth_deviation);
+        for level in &pyramid.levels[1..] {
+            let lk = level.intrinsics.expect("intrinsics");
+            assert_eq!(level.depth_deviation.len(), lk.pixel_count());
+            for (i, &f) in level.depth_deviation.iter().enumerate() {
+                let expected = if (i % lk.width) * k.width / lk.width >= 48 {
+                    2.0
+                } else {
+                    1.0
+                };
+                assert_eq!(f, expected, "level {}x{} pixel {i}", lk.width, lk.height);
+            }
+        }
+        let mut half = RgbdFrame::default();
+        half_resolution_into(&frame, 0.09, &mut half);
+        assert!(half.validate().is_ok());
+        assert_eq!(half.depth_deviation_at(31), 2.0);
+        assert_eq!(half.depth_deviation_at(23), 1.0);
+        // A frame without a map leaves none in the pyramid or the half frame.
+        frame.depth_deviation.clear();
+        pyramid.build(&frame, &config, &SensorNoise::default());
+        assert!(pyramid.levels.iter().all(|l| l.depth_deviation.is_empty()));
+        half_resolution_into(&frame, 0.09, &mut half);
+        assert!(half.depth_deviation.is_empty());
     }
 
     #[test]

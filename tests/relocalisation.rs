@@ -270,6 +270,7 @@ fn garbage(k: &Intrinsics, seed: u64) -> surfel_slam::RgbdFrame {
         width: k.width,
         height: k.height,
         rgb: (0..3 * n).map(|_| (next() >> 56) as u8).collect(),
+        depth_deviation: Vec::new(),
         depth_m: (0..n)
             .map(|_| 0.5 + 4.0 * (next() >> 40) as f32 / (1u64 << 24) as f32)
             .collect(),

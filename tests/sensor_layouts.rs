@@ -281,6 +281,14 @@ fn stray_export_runs_on_depth_alone_against_the_odometry() {
     assert!(frame.depth_m[..256 * 6].iter().all(|&d| d == 0.0));
     assert!(frame.depth_m[256 * 100 + 3] == 0.0 && frame.depth_m[256 * 100 + 100] > 0.0);
     assert!(frame.depth_m[256 * 100 + 253] > 0.0, "confidence 1 kept");
+    // ... marked less certain than confidence 2, which keeps the model's deviation.
+    assert_eq!(frame.depth_deviation.len(), 256 * 192);
+    assert_eq!(
+        frame.depth_deviation[256 * 100 + 253],
+        surfel_slam::frame::MEDIUM_CONFIDENCE_DEVIATION
+    );
+    const { assert!(surfel_slam::frame::MEDIUM_CONFIDENCE_DEVIATION > 1.0) };
+    assert_eq!(frame.depth_deviation[256 * 100 + 100], 1.0);
     assert!(frame.rgb.iter().all(|&c| c == 128));
 
     let out = dir.0.join("estimate.txt");

@@ -3,14 +3,15 @@
 //! sequence: constant grey), colour of another size than the depth
 //! (scaled to it, for the layouts with a calibration file), the depth's
 //! size against that file, and a confidence image (Stray Scanner: depth
-//! of confidence 0 dropped). Errors name the file.
+//! of confidence 0 dropped, of confidence 1 weighted as
+//! [`MEDIUM_CONFIDENCE_DEVIATION`] times as uncertain). Errors name the file.
 
 use image::{imageops, DynamicImage, ImageFormat, RgbImage};
 
 use super::{DatasetError, FrameEntry};
 use crate::frame::{
     decode_colour, decode_depth_into, image_dimensions, Channel, DepthSettings, FrameError,
-    RgbdFrame,
+    RgbdFrame, MEDIUM_CONFIDENCE_DEVIATION,
 };
 
 /// The grey of a depth-only frame's colour image (RGB8, every channel).
@@ -50,7 +51,8 @@ pub fn decode_frame(
 /// colour, a constant grey ([`DEPTH_ONLY_GREY`]) image of the depth's size;
 /// for an entry with a calibrated size, the depth image must be that size
 /// ([`DatasetError::ImageSize`]) and colour of another size is scaled to
-/// it; with a confidence image, depth whose confidence is 0 becomes 0.
+/// it; with a confidence image, depth whose confidence is 0 becomes 0 and
+/// that of confidence 1 is marked less certain ([`RgbdFrame::depth_deviation`]).
 pub fn decode_frame_bytes(
     entry: &FrameEntry,
     bytes: &FrameBytes<'_>,
@@ -134,7 +136,8 @@ fn scaled_colour(bytes: &[u8], width: usize, height: usize) -> Result<Vec<u8>, F
 }
 
 /// Sets to 0 the depth of `frame` wherever the 8-bit confidence image
-/// `bytes` (file `path`, beside depth image `depth_path`) is 0.
+/// `bytes` (file `path`, beside depth image `depth_path`) is 0, and its
+/// depth deviation to [`MEDIUM_CONFIDENCE_DEVIATION`] where it is 1.
 fn apply_confidence(
     path: &str,
     depth_path: &str,
@@ -170,6 +173,16 @@ fn apply_confidence(
             *d = 0.0;
         }
     }
+    frame.depth_deviation.clear();
+    frame
+        .depth_deviation
+        .extend(levels.as_raw().iter().map(|&c| {
+            if c == 1 {
+                MEDIUM_CONFIDENCE_DEVIATION
+            } else {
+                1.0
+            }
+        }));
     Ok(())
 }
 

@@ -231,6 +231,8 @@ impl RgbdFrame {
         }
         self.width = dw;
         self.height = dh;
+        // A reused frame keeps no earlier frame's confidence.
+        self.depth_deviation.clear();
         Ok(())
     }
 
@@ -258,6 +260,7 @@ impl RgbdFrame {
             width,
             height,
             rgb,
+            depth_deviation: Vec::new(),
             depth_m: depth_raw.iter().map(|&r| settings.to_metres(r)).collect(),
         })
     }

@@ -9,6 +9,8 @@ pub enum Channel {
     Colour,
     /// The depth image.
     Depth,
+    /// The per-pixel depth deviation (a sensor's confidence map).
+    DepthDeviation,
 }
 
 impl std::fmt::Display for Channel {
@@ -16,6 +18,7 @@ impl std::fmt::Display for Channel {
         f.write_str(match self {
             Channel::Colour => "colour",
             Channel::Depth => "depth",
+            Channel::DepthDeviation => "depth deviation",
         })
     }
 }
@@ -86,6 +89,15 @@ pub enum FrameError {
         /// Row-major pixel index.
         pixel: usize,
         /// The offending value, metres.
+        value: f32,
+    },
+    /// A depth deviation multiplier is not a finite number >= 1 (a
+    /// frame built by hand).
+    #[error("depth deviation must be a finite multiplier >= 1; pixel {pixel} holds {value}")]
+    InvalidDepthDeviation {
+        /// Row-major pixel index.
+        pixel: usize,
+        /// The offending value.
         value: f32,
     },
     /// The depth conversion settings are unusable.

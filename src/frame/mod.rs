@@ -85,7 +85,20 @@ pub struct RgbdFrame {
     pub rgb: Vec<u8>,
     /// Depth along +z in metres, 0 = no measurement, row-major.
     pub depth_m: Vec<f32>,
+    /// Per-pixel multiplier (>= 1) of the sensor noise model's depth
+    /// deviation, row-major; empty = 1 at every pixel. A sensor's own
+    /// confidence map lands here (Stray Scanner: ARKit's medium confidence
+    /// is [`MEDIUM_CONFIDENCE_DEVIATION`]), so tracking and fusion weigh
+    /// the pixel by `1 / factor^2`.
+    pub depth_deviation: Vec<f32>,
 }
+
+/// Depth deviation of a pixel of medium confidence (ARKit's 1) over one of
+/// high confidence (2): the same factor as a depth edge's in the noise
+/// models (`SensorNoise::edge_factor`), so such a pixel counts a quarter.
+/// ARKit states no accuracy per level; see `docs/design.md`, "Confidence
+/// of iPhone depth".
+pub const MEDIUM_CONFIDENCE_DEVIATION: f32 = 2.0;
 
 /// Largest side accepted, pixels.
 pub const MAX_SIDE: usize = 16384;
@@ -127,6 +140,23 @@ impl RgbdFrame {
                 expected: 3 * n,
             });
         }
+        if !self.depth_deviation.is_empty() && self.depth_deviation.len() != n {
+            return Err(FrameError::BufferLength {
+                channel: Channel::DepthDeviation,
+                found: self.depth_deviation.len(),
+                expected: n,
+            });
+        }
+        if let Some(pixel) = self
+            .depth_deviation
+            .iter()
+            .position(|f| !(f.is_finite() && *f >= 1.0))
+        {
+            return Err(FrameError::InvalidDepthDeviation {
+                pixel,
+                value: self.depth_deviation[pixel],
+            });
+        }
         let invalid = |d: &f32| !(d.is_finite() && *d >= 0.0);
         // Whole pieces tested without an early exit, so the test vectorises
         // (a per-pixel search took 0.5 ms a frame); the pixel is then found
@@ -163,6 +193,14 @@ impl RgbdFrame {
             });
         }
         Ok(())
+    }
+
+    /// Multiplier of the depth deviation at pixel `i` (row-major): 1 where
+    /// the frame carries none.
+    #[inline]
+    #[must_use]
+    pub fn depth_deviation_at(&self, i: usize) -> f32 {
+        self.depth_deviation.get(i).copied().unwrap_or(1.0)
     }
 
     /// Number of pixels with a depth measurement.
@@ -209,6 +247,7 @@ mod tests {
             height,
             rgb: vec![0; 3 * n],
             depth_m: vec![1.5; n],
+            depth_deviation: Vec::new(),
         };
         assert!(clean.validate().is_ok());
         // Around the boundaries of the pieces the scan tests whole, and the ends.
@@ -229,12 +268,55 @@ mod tests {
     }
 
     #[test]
+    fn a_depth_deviation_map_must_fit_the_frame_and_hold_multipliers_of_at_least_one() {
+        let (width, height) = (5, 4);
+        let n = width * height;
+        let mut frame = RgbdFrame {
+            width,
+            height,
+            rgb: vec![0; 3 * n],
+            depth_m: vec![1.5; n],
+            depth_deviation: vec![1.0; n],
+        };
+        frame.depth_deviation[7] = MEDIUM_CONFIDENCE_DEVIATION;
+        assert!(frame.validate().is_ok());
+        assert_eq!(frame.depth_deviation_at(7), MEDIUM_CONFIDENCE_DEVIATION);
+        assert_eq!(frame.depth_deviation_at(n), 1.0);
+        for bad in [0.5, 0.0, -1.0, f32::NAN, f32::INFINITY] {
+            let mut f = frame.clone();
+            f.depth_deviation[11] = bad;
+            assert!(
+                matches!(
+                    f.validate(),
+                    Err(FrameError::InvalidDepthDeviation { pixel: 11, .. })
+                ),
+                "{bad}"
+            );
+        }
+        let mut short = frame.clone();
+        short.depth_deviation.pop();
+        assert!(matches!(
+            short.validate(),
+            Err(FrameError::BufferLength {
+                channel: Channel::DepthDeviation,
+                found,
+                expected,
+            }) if found == n - 1 && expected == n
+        ));
+        // None at all: 1 everywhere.
+        frame.depth_deviation.clear();
+        assert!(frame.validate().is_ok());
+        assert_eq!(frame.depth_deviation_at(7), 1.0);
+    }
+
+    #[test]
     fn depth_thumbnail_takes_the_pixel_under_each_centre() {
         let frame = RgbdFrame {
             width: 4,
             height: 2,
             rgb: vec![0; 24],
             depth_m: vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 0.0, 8.0],
+            depth_deviation: Vec::new(),
         };
         let mut out = vec![9.0];
         frame.depth_thumbnail_into(2, 1, &mut out);

@@ -49,7 +49,8 @@ impl<'a> NoiseWeights<'a> {
     /// measurement, 1 for a uniform model): the inverse variance of its
     /// deviation along its normal
     /// ([`SensorNoise::along_normal_m`](crate::noise::SensorNoise::along_normal_m)),
-    /// times `edge_factor^2` less at depth edges, relative to the model's
+    /// times `edge_factor^2` less at depth edges and the square of the
+    /// pixel's [`PyramidLevel::depth_deviation_at`] less, relative to the model's
     /// reference and clamped to `min_noise_weight..=1`. It is the
     /// measurement's share in a merge, so far, oblique and edge pixels move a
     /// surfel seen better before by little; the confidence a merge adds is the
@@ -78,6 +79,7 @@ impl<'a> NoiseWeights<'a> {
         if self.edge_weight < 1.0 && is_depth_edge(vertices, (i % w, i / w), (w, h)) {
             weight *= self.edge_weight;
         }
+        weight /= self.level0.depth_deviation_at(i).powi(2);
         weight.clamp(self.floor, 1.0)
     }
 
@@ -123,6 +125,7 @@ impl<'a> NoiseWeights<'a> {
             if self.edge_weight < 1.0 && is_depth_edge(vertices, (i % w, i / w), (w, h)) {
                 *weight *= self.edge_weight;
             }
+            *weight /= self.level0.depth_deviation_at(i).powi(2);
             *weight = weight.clamp(self.floor, 1.0);
         }
     }
@@ -192,14 +195,20 @@ mod tests {
             .collect();
         let mut normals = vec![Vec3::ZERO; k.pixel_count()];
         normals_into(&vertices, k.width, &mut normals);
+        // Every third pixel marked twice as uncertain by the sensor.
+        let depth_deviation = (0..k.pixel_count())
+            .map(|i| if i % 3 == 0 { 2.0 } else { 1.0 })
+            .collect();
         let level0 = PyramidLevel {
             intrinsics: Some(k),
             vertices,
             normals,
+            depth_deviation,
             ..PyramidLevel::default()
         };
         let config = FusionConfig {
             noise: SensorNoise::kinect_v1(),
+            min_noise_weight: 0.02,
             ..FusionConfig::default()
         };
         let weights = NoiseWeights::new(&level0, &k, &config);
@@ -219,6 +228,28 @@ mod tests {
         weights.at_each_into(&pixels[..35], &mut longer);
         assert!(longer[..35].iter().all(|w| w.is_finite()));
         assert!(longer[35..].iter().all(|w| w.is_nan()));
+        // A marked pixel weighs a quarter of what it would unmarked (down
+        // to the floor).
+        let unmarked_level = PyramidLevel {
+            depth_deviation: Vec::new(),
+            ..level0.clone()
+        };
+        let unmarked = NoiseWeights::new(&unmarked_level, &k, &config);
+        let mut quartered = 0;
+        for i in 0..k.pixel_count() {
+            let (marked, plain) = (weights.at(i), unmarked.at(i));
+            if i % 3 != 0 || plain == 0.0 {
+                assert_eq!(marked.to_bits(), plain.to_bits(), "pixel {i}");
+            } else {
+                assert_eq!(
+                    marked,
+                    (plain / 4.0).max(config.min_noise_weight),
+                    "pixel {i}"
+                );
+                quartered += usize::from(plain / 4.0 > config.min_noise_weight);
+            }
+        }
+        assert!(quartered > 100, "{quartered} pixels quartered");
         // The scene gives many different weights, and some zeros.
         assert!(
             distinct.len() > 100 && distinct.contains(&0.0f32.to_bits()),

@@ -249,6 +249,7 @@ impl CameraFixedMask {
         out.height = frame.height;
         out.rgb.clone_from(&frame.rgb);
         out.depth_m.clone_from(&frame.depth_m);
+        out.depth_deviation.clone_from(&frame.depth_deviation);
         let mut taken = 0usize;
         for (c, _) in self.masked.iter().enumerate().filter(|(_, &m)| m) {
             let (x0, y0) = ((c % self.cols) * self.step, (c / self.cols) * self.step);
@@ -334,6 +335,7 @@ mod tests {
             width: W,
             height: H,
             rgb: vec![0; 3 * W * H],
+            depth_deviation: Vec::new(),
             depth_m: vec![0.0; W * H],
         };
         for y in 0..H {

@@ -110,6 +110,7 @@ impl StructuredLight {
             };
         }
         crate::frame::RgbdFrame {
+            depth_deviation: Vec::new(),
             depth_m: depth,
             ..frame.clone()
         }

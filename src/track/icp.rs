@@ -61,12 +61,14 @@ pub struct NoiseWeights<'a> {
 impl NoiseWeights<'_> {
     /// Scale `reference / sigma` of a point-to-plane residual between the
     /// measurement `q` and the model point `p` (camera frame, metres) along
-    /// the measured normal `n`.
+    /// the measured normal `n`; `q_deviation` multiplies the model's
+    /// deviation of `q` (its pixel's [`PyramidLevel::depth_deviation_at`]).
     #[inline]
     #[must_use]
-    pub fn point_to_plane_scale(&self, q: Vec3, p: Vec3, n: Vec3) -> f32 {
+    pub fn point_to_plane_scale(&self, q: Vec3, p: Vec3, n: Vec3, q_deviation: f32) -> f32 {
         let noise = self.noise;
-        let sq = noise.along_normal_m(q.z, n.dot(q) / q.length().max(1e-6), self.focal_px);
+        let sq =
+            q_deviation * noise.along_normal_m(q.z, n.dot(q) / q.length().max(1e-6), self.focal_px);
         let sp = noise.along_normal_m(p.z, n.dot(p) / p.length().max(1e-6), self.focal_px);
         // Not divided by (1 + MODEL_VARIANCE_RATIO): that makes a
         // near-uniform model scale by exactly 1 but moved ICL-NUIM kt0 with
@@ -110,8 +112,10 @@ impl IcpStep {
 ///
 /// Source points are the model prediction's pixels (`model`, gathered from
 /// it) on a grid of step `stride` (matching the level's downsampling).
-/// Residuals are weighted by `noise` (see the module doc); `None` or a
-/// uniform model weighs them all 1.
+/// Residuals are weighted by `noise` (see the module doc), each frame
+/// point's deviation multiplied by its pixel's
+/// [`PyramidLevel::depth_deviation_at`]; `None` or a uniform model weighs
+/// them all 1.
 #[must_use]
 pub fn icp_step(
     model: &ModelPoints,
@@ -150,6 +154,7 @@ pub fn icp_step(
         // Model point, frame point and frame normal of each inlier of a
         // batch (camera frame), with its noise weight and scale.
         let mut pairs = [(Vec3::ZERO, Vec3::ZERO, Vec3::ZERO); BATCH];
+        let mut deviations = [1.0f32; BATCH];
         let mut weights = [0.0f32; BATCH];
         let mut scales = [1.0f32; BATCH];
         while i < columns.len() {
@@ -202,12 +207,15 @@ pub fn icp_step(
                     continue;
                 }
                 pairs[inliers] = (p, q, n);
+                deviations[inliers] = target.depth_deviation_at(j);
                 weights[inliers] = wp;
                 inliers += 1;
             }
             if let Some(w) = noise {
-                for (scale, &(p, q, n)) in scales.iter_mut().zip(&pairs).take(inliers) {
-                    *scale = w.point_to_plane_scale(q, p, n);
+                for ((scale, &(p, q, n)), &f) in
+                    scales.iter_mut().zip(&pairs).zip(&deviations).take(inliers)
+                {
+                    *scale = w.point_to_plane_scale(q, p, n, f);
                 }
             }
             for ((&(p, q, n), &scale), &wp) in pairs.iter().zip(&scales).zip(&weights).take(inliers)
@@ -257,5 +265,63 @@ impl IcpStep {
             candidate_weight: self.candidate_weight + other.candidate_weight,
             inlier_weight: self.inlier_weight + other.inlier_weight,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Intrinsics;
+    use crate::track::model_points::tests::wall_model;
+    use glam::DAffine3;
+
+    /// Mean point-to-plane residual along the optical axis that one step's
+    /// system holds, metres (`b / a` of the z translation: a wall seen
+    /// head-on pins only that translation and two rotations).
+    fn mean_axial_residual(step: &IcpStep) -> f64 {
+        step.system.b[5] / step.system.a[5][5]
+    }
+
+    #[test]
+    fn a_frame_pixel_of_larger_deviation_pulls_the_estimate_less() {
+        // The model is a wall at 2 m; the frame sees its left half there and
+        // its right half 6 cm behind (depth a sensor got wrong).
+        let k = Intrinsics::new(60.0, 60.0, 23.5, 17.5, 48, 36);
+        let (points, mut target) = wall_model(&k, |_| true);
+        for (i, q) in target.vertices.iter_mut().enumerate() {
+            if i % k.width >= k.width / 2 {
+                *q *= 2.06 / 2.0;
+            }
+        }
+        let gates = IcpGates {
+            distance_gate_m: 0.1,
+            normal_gate_deg: 20.0,
+            huber_m: 0.02,
+        };
+        let noise = SensorNoise::lidar();
+        let weights = NoiseWeights {
+            noise: &noise,
+            focal_px: k.fx,
+        };
+        let identity = RigidF32::from_affine(&DAffine3::IDENTITY);
+        let step =
+            |target: &PyramidLevel| icp_step(&points, 1, target, &identity, &gates, Some(weights));
+        let plain = step(&target);
+        // The right half marked as four times as uncertain: weighed 1/16.
+        target.depth_deviation = (0..k.pixel_count())
+            .map(|i| if i % k.width >= k.width / 2 { 4.0 } else { 1.0 })
+            .collect();
+        let marked = step(&target);
+        assert_eq!(plain.system.count, marked.system.count);
+        let (plain_m, marked_m) = (mean_axial_residual(&plain), mean_axial_residual(&marked));
+        // Unmarked, the Huber weight alone keeps the biased half to about
+        // 2.1 cm of pull; marked, about 0.35 cm (6 / 17).
+        assert!(plain_m.abs() > 0.015, "plain {plain_m}");
+        assert!(marked_m.abs() < 0.006, "marked {marked_m}");
+        // Without noise weighting the deviation is not read.
+        let unweighted = icp_step(&points, 1, &target, &identity, &gates, None);
+        target.depth_deviation.clear();
+        let unweighted_plain = icp_step(&points, 1, &target, &identity, &gates, None);
+        assert_eq!(unweighted.system.b, unweighted_plain.system.b);
     }
 }

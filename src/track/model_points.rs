@@ -156,7 +156,7 @@ fn fill_rows(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     #[test]
@@ -191,33 +191,44 @@ mod tests {
         assert!(points.is_empty() && points.intrinsics.is_none());
     }
 
+    /// A wall at 2 m seen head-on by `k`: the model's points where `holds`
+    /// (a pixel index) is true, and the frame's level seeing all of it.
+    pub(crate) fn wall_model(
+        k: &Intrinsics,
+        holds: impl Fn(usize) -> bool,
+    ) -> (ModelPoints, crate::preprocess::PyramidLevel) {
+        let n = k.pixel_count();
+        let wall: Vec<Vec3> = (0..n)
+            .map(|i| k.back_project((i % k.width) as f32, (i / k.width) as f32, 2.0))
+            .collect();
+        let mut prediction = Prediction::new(false);
+        prediction.intrinsics = Some(*k);
+        prediction.vertices = wall.clone();
+        prediction.normals = (0..n)
+            .map(|i| if holds(i) { Vec3::NEG_Z } else { Vec3::ZERO })
+            .collect();
+        let target = crate::preprocess::PyramidLevel {
+            intrinsics: Some(*k),
+            depth: vec![2.0; n],
+            vertices: wall,
+            normals: vec![Vec3::NEG_Z; n],
+            intensity: vec![0.0; n],
+            depth_deviation: Vec::new(),
+        };
+        let mut points = ModelPoints::default();
+        points.gather_from(&prediction);
+        (points, target)
+    }
+
     #[test]
     fn a_strided_icp_pass_uses_exactly_the_grid_pixels_holding_a_surfel() {
-        use crate::preprocess::PyramidLevel;
         use crate::se3::RigidF32;
         use crate::track::icp::{icp_step, IcpGates};
         // A wall at 2 m seen head-on; the model holds it with gaps.
         let k = Intrinsics::new(60.0, 60.0, 23.5, 17.5, 48, 36);
         let n = k.pixel_count();
-        let wall: Vec<Vec3> = (0..n)
-            .map(|i| k.back_project((i % k.width) as f32, (i / k.width) as f32, 2.0))
-            .collect();
         let holds = |i: usize| (i * 7919) % 7 < 4;
-        let mut prediction = Prediction::new(false);
-        prediction.intrinsics = Some(k);
-        prediction.vertices = wall.clone();
-        prediction.normals = (0..n)
-            .map(|i| if holds(i) { Vec3::NEG_Z } else { Vec3::ZERO })
-            .collect();
-        let target = PyramidLevel {
-            intrinsics: Some(k),
-            depth: vec![2.0; n],
-            vertices: wall,
-            normals: vec![Vec3::NEG_Z; n],
-            intensity: vec![0.0; n],
-        };
-        let mut points = ModelPoints::default();
-        points.gather_from(&prediction);
+        let (points, target) = wall_model(&k, holds);
         let gates = IcpGates {
             distance_gate_m: 0.1,
             normal_gate_deg: 20.0,

@@ -51,6 +51,7 @@ pub fn covered(config: &SlamConfig, seed: u64) -> RgbdFrame {
         width: config.intrinsics.width,
         height: config.intrinsics.height,
         rgb: (0..3 * n).map(|_| (next() >> 56) as u8).collect(),
+        depth_deviation: Vec::new(),
         depth_m: (0..n)
             .map(|_| 0.5 + 4.0 * (next() >> 40) as f32 / (1u64 << 24) as f32)
             .collect(),
