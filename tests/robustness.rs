@@ -103,6 +103,25 @@ fn hostile_frames_are_refused_and_spikes_never_poison_the_map() {
     let mut f = render(&k, &config, 4, &noise);
     f.depth_m.pop();
     assert!(slam.push_frame(&f, 4.0).is_err());
+    // A depth deviation map of the wrong length, or holding a multiplier
+    // below 1 or NaN: refused by name.
+    let mut f = render(&k, &config, 4, &noise);
+    f.depth_deviation = vec![1.0; f.depth_m.len() - 1];
+    assert!(matches!(
+        slam.push_frame(&f, 4.0),
+        Err(PipelineError::Frame(FrameError::BufferLength { .. }))
+    ));
+    for bad in [f32::NAN, 0.5, f32::INFINITY] {
+        f.depth_deviation = vec![1.0; f.depth_m.len()];
+        f.depth_deviation[77] = bad;
+        assert!(matches!(
+            slam.push_frame(&f, 4.0),
+            Err(PipelineError::Frame(FrameError::InvalidDepthDeviation {
+                pixel: 77,
+                ..
+            }))
+        ));
+    }
     // A frame of another size: refused.
     let other = render(&k.half(), &config, 4, &noise);
     assert!(matches!(
@@ -116,6 +135,13 @@ fn hostile_frames_are_refused_and_spikes_never_poison_the_map() {
     // a dense patch of 1 cm depths (clipped to 0 by the range) on top.
     for i in 4..20 {
         let mut f = render(&k, &config, i, &noise);
+        // Every other frame marks a third of its pixels as uncertain as a
+        // finite multiplier can.
+        if i % 2 == 0 {
+            f.depth_deviation = (0..f.depth_m.len())
+                .map(|j| if j % 3 == 0 { f32::MAX } else { 1.0 })
+                .collect();
+        }
         for (j, d) in f.depth_m.iter_mut().enumerate() {
             if j % 7 == i % 7 {
                 *d = if j % 2 == 0 {
