@@ -89,7 +89,8 @@ pub struct RgbdFrame {
     /// deviation, row-major; empty = 1 at every pixel. A sensor's own
     /// confidence map lands here (Stray Scanner: ARKit's medium confidence
     /// is [`MEDIUM_CONFIDENCE_DEVIATION`]), so tracking and fusion weigh
-    /// the pixel by `1 / factor^2`.
+    /// the pixel by `1 / factor^2` (under a noise model that weighs at
+    /// all: `SensorNoise::uniform` ignores it).
     pub depth_deviation: Vec<f32>,
 }
 
