@@ -19,6 +19,9 @@ mod bilateral_simd128;
 mod bilateral;
 use bilateral::bilateral_into;
 
+mod downsample;
+use downsample::{downsample_depth, downsample_deviation, downsample_mean};
+
 pub mod camera_fixed;
 mod range_domain;
 pub use range_domain::range_knee_m;
@@ -369,67 +372,6 @@ pub fn back_project_into(k: &Intrinsics, depth: &[f32], out: &mut [Vec3]) {
                 };
             }
         });
-}
-
-/// 2x2 block average of the depths close to the block's first valid depth.
-fn downsample_depth(fine: &[f32], fw: usize, coarse: &mut [f32], cw: usize, gate_m: f32) {
-    coarse.par_chunks_mut(cw).enumerate().for_each(|(v, row)| {
-        // The wasm module does four pixels at a time up to `from`.
-        #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
-        let from = simd128::downsample_depth_row(fine, fw, v, gate_m, row);
-        #[cfg(not(all(target_arch = "wasm32", target_feature = "simd128")))]
-        let from = 0;
-        for (u, o) in row.iter_mut().enumerate().skip(from) {
-            *o = downsampled_depth_at(fine, fw, gate_m, u, v);
-        }
-    });
-}
-
-/// Coarse pixel `(u, v)` of [`downsample_depth`].
-#[inline(always)]
-fn downsampled_depth_at(fine: &[f32], fw: usize, gate_m: f32, u: usize, v: usize) -> f32 {
-    let idx = [
-        (2 * v) * fw + 2 * u,
-        (2 * v) * fw + 2 * u + 1,
-        (2 * v + 1) * fw + 2 * u,
-        (2 * v + 1) * fw + 2 * u + 1,
-    ];
-    let reference = idx.iter().map(|&i| fine[i]).find(|&d| d > 0.0);
-    match reference {
-        None => 0.0,
-        Some(r) => {
-            let (mut s, mut n) = (0.0, 0.0);
-            for &i in &idx {
-                let d = fine[i];
-                if d > 0.0 && (d - r).abs() < gate_m {
-                    s += d;
-                    n += 1.0;
-                }
-            }
-            s / n
-        }
-    }
-}
-
-/// [`downsample_mean`] of a depth deviation map into `coarse`, resized to
-/// `cw` x `ch`; an empty map (1 everywhere) stays empty.
-fn downsample_deviation(fine: &[f32], fw: usize, coarse: &mut Vec<f32>, (cw, ch): (usize, usize)) {
-    if fine.len() < 4 * cw * ch {
-        coarse.clear();
-        return;
-    }
-    coarse.resize(cw * ch, 1.0);
-    downsample_mean(fine, fw, coarse, cw);
-}
-
-fn downsample_mean(fine: &[f32], fw: usize, coarse: &mut [f32], cw: usize) {
-    coarse.par_chunks_mut(cw).enumerate().for_each(|(v, row)| {
-        for (u, o) in row.iter_mut().enumerate() {
-            let a = (2 * v) * fw + 2 * u;
-            let b = a + fw;
-            *o = 0.25 * (fine[a] + fine[a + 1] + fine[b] + fine[b + 1]);
-        }
-    });
 }
 
 /// Normals from central differences of the vertex map, oriented towards the camera.

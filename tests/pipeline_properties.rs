@@ -36,7 +36,7 @@ use surfel_slam::simulated_noise::{NoiseSimulation, SimulatedSensor};
 use surfel_slam::synthetic::{self, NoiseModel};
 use surfel_slam::track::TrackerMode;
 use surfel_slam::Verdict;
-use surfel_slam::{FrameReport, Pipeline, PipelineError, SlamConfig};
+use surfel_slam::{FrameReport, Pipeline, PipelineError, RgbdFrame, SlamConfig};
 
 /// The crate's seeded generator, with the draws this test needs.
 struct Rng(SplitMix);
@@ -127,6 +127,18 @@ struct Coverage {
     localised: usize,
     /// Frames pushed with simulated noise on.
     noisy_frames: usize,
+    /// Frames pushed with a depth deviation map (a sensor's confidence).
+    marked_frames: usize,
+}
+
+/// `frame` with every third pixel's depth deviation `factor` (1 elsewhere).
+fn marked(frame: &RgbdFrame, factor: f32) -> RgbdFrame {
+    RgbdFrame {
+        depth_deviation: (0..frame.depth_m.len())
+            .map(|i| if i % 3 == 0 { factor } else { 1.0 })
+            .collect(),
+        ..frame.clone()
+    }
 }
 
 fn fail(seed: u64, step: usize, what: &str) -> String {
@@ -374,6 +386,12 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
                 3 => slam.push_raw(e.width, e.height, &e.rgb, &e.depth_raw, clock),
                 0 => slam.push_png(&e.colour_png, &e.depth_png, clock),
                 1 => slam.push_rgba_depth_png(e.width, e.height, &e.rgb, &e.depth_png, clock),
+                // Every other frame pushed as a frame carries a confidence
+                // map: a third of its pixels twice as uncertain.
+                _ if cursor % 2 == 0 => {
+                    cov.marked_frames += 1;
+                    slam.push_frame(&marked(&e.frame, 2.0), clock)
+                }
                 _ => slam.push_frame(&e.frame, clock),
             };
             let r =
@@ -426,6 +444,7 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
                     &e.depth_png,
                     clock + 1.0,
                 ),
+                6 if cursor % 2 == 0 => slam.push_frame(&marked(&e.frame, f32::NAN), clock + 1.0),
                 6 => slam.push_frame(&garbage.odd.frame, clock + 1.0),
                 7 => slam.push_raw(
                     e.width,
@@ -586,6 +605,7 @@ fn add(total: &mut Coverage, c: Coverage) {
     total.localise_starts += c.localise_starts;
     total.localised += c.localised;
     total.noisy_frames += c.noisy_frames;
+    total.marked_frames += c.marked_frames;
 }
 
 #[test]
@@ -624,8 +644,10 @@ fn any_sequence_of_calls_keeps_the_pipeline_consistent_on_synthetic_frames() {
         total.localise_starts > 0 && total.localised > 0,
         "{total:?}"
     );
-    // Past a cleanup interval (150 frames) with simulated noise on.
+    // Past a cleanup interval (150 frames) with simulated noise on, and
+    // with confidence maps.
     assert!(total.noisy_frames > 150, "{total:?}");
+    assert!(total.marked_frames > 150, "{total:?}");
 }
 
 #[test]

@@ -107,7 +107,7 @@ pub(super) fn back_project_row(k: &Intrinsics, v: usize, depth: &[f32], out: &mu
     u
 }
 
-/// Row `v` of [`super::downsample_depth`] (`out`, from `fine` of width `fw`)
+/// Row `v` of [`super::downsample::downsample_depth`] (`out`, from `fine` of width `fw`)
 /// from column 0 in blocks of four; returns the first column left for the
 /// scalar loop. A block's masks follow the scalar code: the reference is the
 /// first of the 2x2 depths that is `> 0`; a depth not taken adds `+0` to the
@@ -316,7 +316,8 @@ mod tests {
                     let from = downsample_depth_row(&fine, fw, v, gate, &mut row);
                     assert!(from + 4 > cw, "row {v}: only {from} of {cw} columns");
                     for (u, &got) in row.iter().enumerate().take(from) {
-                        let want = super::super::downsampled_depth_at(&fine, fw, gate, u, v);
+                        let want =
+                            super::super::downsample::downsampled_depth_at(&fine, fw, gate, u, v);
                         let same = got.to_bits() == want.to_bits() || got.is_nan() && want.is_nan();
                         assert!(same, "fw {fw}, gate {gate}, ({u}, {v}): {got} vs {want}");
                         defined += usize::from(want > 0.0);
