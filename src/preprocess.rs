@@ -363,7 +363,7 @@ pub fn back_project_into(k: &Intrinsics, depth: &[f32], out: &mut [Vec3]) {
             #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
             let from = simd128::back_project_row(k, v, d_row, out_row);
             #[cfg(not(all(target_arch = "wasm32", target_feature = "simd128")))]
-            let from = 0;
+            let from = back_project_blocks(k, v, d_row, out_row);
             for (u, (o, &d)) in out_row.iter_mut().zip(d_row).enumerate().skip(from) {
                 *o = if d > 0.0 {
                     k.back_project(u as f32, v as f32, d)
@@ -372,6 +372,37 @@ pub fn back_project_into(k: &Intrinsics, depth: &[f32], out: &mut [Vec3]) {
                 };
             }
         });
+}
+
+/// Row `v` of [`back_project_into`] in blocks of eight pixels, the same
+/// arithmetic as [`Intrinsics::back_project`] lane by lane (so the same
+/// bits); returns the first column left for the scalar loop. Laid out as
+/// arrays so that the compiler divides four or eight pixels at once: one
+/// pixel at a time, the divisions held a fifth of the frame's samples
+/// ([performance](../docs/performance.md#back-projection)).
+#[cfg(not(all(target_arch = "wasm32", target_feature = "simd128")))]
+#[inline]
+fn back_project_blocks(k: &Intrinsics, v: usize, depth: &[f32], out: &mut [Vec3]) -> usize {
+    const LANES: usize = 8;
+    let v_cy = v as f32 - k.cy;
+    let mut u0 = 0;
+    for (o, d) in out.chunks_exact_mut(LANES).zip(depth.chunks_exact(LANES)) {
+        let mut x = [0.0f32; LANES];
+        let mut y = [0.0f32; LANES];
+        for i in 0..LANES {
+            x[i] = ((u0 + i) as f32 - k.cx) * d[i] / k.fx;
+            y[i] = v_cy * d[i] / k.fy;
+        }
+        for i in 0..LANES {
+            o[i] = if d[i] > 0.0 {
+                Vec3::new(x[i], y[i], d[i])
+            } else {
+                Vec3::ZERO
+            };
+        }
+        u0 += LANES;
+    }
+    u0
 }
 
 /// Normals from central differences of the vertex map, oriented towards the camera.
