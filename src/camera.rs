@@ -131,8 +131,9 @@ impl Intrinsics {
         let v = pixel.y + 0.5;
         // Truncation is floor for the non-negative values kept, and unlike
         // `floor` needs no libm call on baseline x86-64 (a hot loop's cost).
+        // Through u32: converting to a 64-bit integer costs a branch more.
         if u >= 0.0 && v >= 0.0 && u < self.width as f32 && v < self.height as f32 {
-            Some(v as usize * self.width + u as usize)
+            Some(v as u32 as usize * self.width + u as u32 as usize)
         } else {
             None
         }
