@@ -378,8 +378,8 @@ pub fn back_project_into(k: &Intrinsics, depth: &[f32], out: &mut [Vec3]) {
 /// arithmetic as [`Intrinsics::back_project`] lane by lane (so the same
 /// bits); returns the first column left for the scalar loop. Laid out as
 /// arrays so that the compiler divides four or eight pixels at once: one
-/// pixel at a time, the divisions held a fifth of the frame's samples
-/// ([performance](../docs/performance.md#back-projection)).
+/// pixel at a time, this loop held a fifth of the frame's samples, most
+/// on its division ([performance](../docs/performance.md#back-projection)).
 #[cfg(not(all(target_arch = "wasm32", target_feature = "simd128")))]
 #[inline]
 fn back_project_blocks(k: &Intrinsics, v: usize, depth: &[f32], out: &mut [Vec3]) -> usize {
