@@ -10,8 +10,52 @@
 //! transcendental function, and glam's constructors that call std's
 //! (`from_rotation_z`, `from_angle`, `to_axis_angle`) are replaced here.
 //! Square roots need nothing: IEEE 754 rounds them exactly everywhere.
+//!
+//! The bounds below are here for speed, not bits: `f32::max` must return
+//! the other operand when one is NaN, which wasm's `f32.max` does not, so
+//! in wasm it is a call to `fmaxf` per value (and a loop holding it is not
+//! vectorised). In the per-pixel and per-surfel loops a compare and a
+//! select does the same for operands that are never both NaN.
 
-use glam::{DMat3, DQuat, DVec3, Vec2};
+use glam::{DMat3, DQuat, DVec3, Vec2, Vec3};
+
+/// `x.max(floor)`: `floor` where `x` is NaN, as std's. `floor` must not be
+/// NaN. One compare and select on every target.
+#[inline(always)]
+#[must_use]
+pub fn at_least(x: f32, floor: f32) -> f32 {
+    if x > floor {
+        x
+    } else {
+        floor
+    }
+}
+
+/// `x.min(ceiling)`: `ceiling` where `x` is NaN, as std's. `ceiling` must
+/// not be NaN. One compare and select on every target.
+#[inline(always)]
+#[must_use]
+pub fn at_most(x: f32, ceiling: f32) -> f32 {
+    if x < ceiling {
+        x
+    } else {
+        ceiling
+    }
+}
+
+/// Per-component minimum of two points that hold no NaN (box growth).
+#[inline(always)]
+#[must_use]
+pub fn min_vec3(a: Vec3, b: Vec3) -> Vec3 {
+    Vec3::new(at_most(a.x, b.x), at_most(a.y, b.y), at_most(a.z, b.z))
+}
+
+/// Per-component maximum of two points that hold no NaN (box growth).
+#[inline(always)]
+#[must_use]
+pub fn max_vec3(a: Vec3, b: Vec3) -> Vec3 {
+    Vec3::new(at_least(a.x, b.x), at_least(a.y, b.y), at_least(a.z, b.z))
+}
 
 /// Rotation by `angle` (radians) about the z axis (glam's
 /// `DMat3::from_rotation_z`, computed with `libm`).
@@ -56,6 +100,40 @@ pub fn unit_vec2(angle: f32) -> Vec2 {
 #[allow(clippy::disallowed_methods)] // std's maths in checks only, not on a result's path
 mod tests {
     use super::*;
+
+    #[test]
+    fn bounds_give_std_s_bits_for_every_operand_but_signed_zeros() {
+        let values = [
+            f32::NAN,
+            f32::NEG_INFINITY,
+            -3.5,
+            -1e-30,
+            0.0,
+            1e-6,
+            0.25,
+            1.0,
+            7.0,
+            f32::MAX,
+            f32::INFINITY,
+        ];
+        for &x in &values {
+            for &bound in values.iter().filter(|b| !b.is_nan()) {
+                assert_eq!(
+                    at_least(x, bound).to_bits(),
+                    x.max(bound).to_bits(),
+                    "{x} {bound}"
+                );
+                assert_eq!(
+                    at_most(x, bound).to_bits(),
+                    x.min(bound).to_bits(),
+                    "{x} {bound}"
+                );
+            }
+        }
+        let (a, b) = (Vec3::new(1.0, -2.0, 3.0), Vec3::new(0.5, 4.0, 3.0));
+        assert_eq!(min_vec3(a, b), a.min(b));
+        assert_eq!(max_vec3(a, b), a.max(b));
+    }
 
     #[test]
     fn agree_with_glam_within_an_ulp_or_two() {

@@ -16,6 +16,7 @@
 //! exact only after a rebuild, and otherwise a lower bound, which is still
 //! conservative for "may hold a surfel seen before frame f".
 
+use crate::portable_math::{max_vec3, min_vec3};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -103,8 +104,8 @@ impl ChunkBounds {
     #[inline]
     pub fn grow(&mut self, i: usize, position: Vec3) {
         let c = self.ensure(i);
-        self.min[c] = self.min[c].min(position);
-        self.max[c] = self.max[c].max(position);
+        self.min[c] = min_vec3(self.min[c], position);
+        self.max[c] = max_vec3(self.max[c], position);
     }
 
     /// Records that surfel `i` was last updated at frame `frame` (a new
@@ -127,7 +128,7 @@ impl ChunkBounds {
             (self.min[c], self.max[c]) = piece
                 .iter()
                 .fold((self.min[c], self.max[c]), |(lo, hi), &p| {
-                    (lo.min(p), hi.max(p))
+                    (min_vec3(lo, p), max_vec3(hi, p))
                 });
             self.newest[c] = self.newest[c].max(frame);
             self.oldest[c] = self.oldest[c].min(frame);

@@ -14,6 +14,7 @@
 
 use crate::camera::{pixel_of, Intrinsics};
 use crate::fusion::SurfelMap;
+use crate::portable_math::at_least;
 use crate::prefetch::prefetch;
 use crate::se3::RigidF32;
 use glam::Vec3;
@@ -93,7 +94,7 @@ impl IndexMap {
                     let surface = measured.get(cell).map_or(0.0, |p| p.z);
                     if surface > 0.0 && z <= surface + band_m {
                         // Confidences are positive, so their bit patterns order like the values.
-                        let key = (u64::from(map.confidences[i].max(0.0).to_bits()) << 32)
+                        let key = (u64::from(at_least(map.confidences[i], 0.0).to_bits()) << 32)
                             | (i as u64 + 1);
                         raise_to(&chosen[cell], key);
                     }

@@ -20,6 +20,7 @@ use super::surfel_map::{ChunkMut, Surfel};
 use super::{FusionConfig, SurfelMap};
 use crate::camera::project_to_pixels_into;
 use crate::camera::Intrinsics;
+use crate::portable_math::{at_least, at_most, max_vec3, min_vec3};
 use crate::prefetch::prefetch;
 use crate::preprocess::{FramePyramid, PyramidLevel};
 use crate::se3::RigidF32;
@@ -174,8 +175,8 @@ impl MergeBatch {
             let m = measure.surfel(pixel, gain * noise_weight);
             let p = merge(chunk, local, &m, gain);
             let block = local / BLOCK;
-            update.min[block] = update.min[block].min(p);
-            update.max[block] = update.max[block].max(p);
+            update.min[block] = min_vec3(update.min[block], p);
+            update.max[block] = max_vec3(update.max[block], p);
         }
         self.count = 0;
     }
@@ -355,7 +356,7 @@ impl Integrator {
                         }
                         *slot = pixel as u32;
                         // Confidences are positive, so their bit patterns order like the values.
-                        let key = (u64::from(map.confidences[j].max(0.0).to_bits()) << 32)
+                        let key = (u64::from(at_least(map.confidences[j], 0.0).to_bits()) << 32)
                             | (j as u64 + 1);
                         raise_to(&best[pixel], key);
                     }
@@ -563,8 +564,10 @@ impl<'a> Measure<'a> {
     fn surfel(&self, i: usize, confidence: f32) -> Surfel {
         let p = self.view.level0.vertices[i];
         let n_cam = self.view.level0.normals[i];
-        let radius = (std::f32::consts::SQRT_2 * p.z / self.focal / n_cam.z.abs().max(0.25))
-            .min(self.max_radius_m);
+        let radius = at_most(
+            std::f32::consts::SQRT_2 * p.z / self.focal / at_least(n_cam.z.abs(), 0.25),
+            self.max_radius_m,
+        );
         let c = &self.view.rgb[3 * i..3 * i + 3];
         Surfel {
             position: self.view.world_from_camera.point(p),

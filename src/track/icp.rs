@@ -25,6 +25,7 @@
 
 use crate::noise::SensorNoise;
 use crate::ordered_sum::sum_in_blocks;
+use crate::portable_math::at_least;
 use crate::prefetch::prefetch;
 use crate::preprocess::PyramidLevel;
 use crate::se3::RigidF32;
@@ -67,9 +68,9 @@ impl NoiseWeights<'_> {
     #[must_use]
     pub fn point_to_plane_scale(&self, q: Vec3, p: Vec3, n: Vec3, q_deviation: f32) -> f32 {
         let noise = self.noise;
-        let sq =
-            q_deviation * noise.along_normal_m(q.z, n.dot(q) / q.length().max(1e-6), self.focal_px);
-        let sp = noise.along_normal_m(p.z, n.dot(p) / p.length().max(1e-6), self.focal_px);
+        let sq = q_deviation
+            * noise.along_normal_m(q.z, n.dot(q) / at_least(q.length(), 1e-6), self.focal_px);
+        let sp = noise.along_normal_m(p.z, n.dot(p) / at_least(p.length(), 1e-6), self.focal_px);
         // Not divided by (1 + MODEL_VARIANCE_RATIO): that makes a
         // near-uniform model scale by exactly 1 but moved ICL-NUIM kt0 with
         // Kinect noise (tests/sensor_noise.rs) from 0.29 to 0.94 cm ATE;
