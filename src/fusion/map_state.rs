@@ -5,7 +5,8 @@
 //! absorbed slots awaiting removal.
 
 use super::chunk_bounds::{BlockBox, BLOCK};
-use super::surfel_map::{Surfel, SurfelMap};
+use super::surfel::Surfel;
+use super::surfel_map::SurfelMap;
 
 /// The map's cleanup bookkeeping (see `remove_unstable`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

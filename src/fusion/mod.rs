@@ -28,6 +28,7 @@ mod map_state;
 mod noise_weights;
 pub mod predict;
 mod spatial_order;
+mod surfel;
 mod surfel_map;
 
 pub use cleanup::remove_unstable;
@@ -38,4 +39,5 @@ pub use integrate::{FusionStats, Integrator, ABSORBED};
 pub use map_state::MapSchedule;
 pub use predict::{Measured, Prediction};
 pub use spatial_order::SpatialOrder;
-pub use surfel_map::{Surfel, SurfelMap};
+pub use surfel::Surfel;
+pub use surfel_map::SurfelMap;

@@ -5,50 +5,11 @@
 //! colours `[u8; 4]` RGBA with A = 255) and per-surfel loops vectorise.
 
 use super::chunk_bounds::{ChunkBounds, CHUNK};
+use super::surfel::Surfel;
 use super::ABSORBED;
 use crate::prefetch::prefetch;
 use glam::Vec3;
 use rayon::prelude::*;
-
-/// One surfel's values, or one measurement about to be merged or added.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Surfel {
-    /// Centre, world frame, metres.
-    pub position: Vec3,
-    /// Unit normal, world frame.
-    pub normal: Vec3,
-    /// RGBA8 colour (A = 255).
-    pub colour: [u8; 4],
-    /// Disk radius, metres.
-    pub radius: f32,
-    /// Confidence (for a measurement: its weight).
-    pub confidence: f32,
-}
-
-impl Surfel {
-    /// Confidence-weighted average of `self` and `other` (Keller et al.
-    /// 2013): position, normal (renormalised) and colour averaged, the
-    /// radius never grows, the confidences add up.
-    #[must_use]
-    pub fn merged_with(&self, other: &Surfel) -> Surfel {
-        let total = self.confidence + other.confidence;
-        let (a, b) = (self.confidence / total, other.confidence / total);
-        let normal = (self.normal * a + other.normal * b)
-            .try_normalize()
-            .unwrap_or(self.normal);
-        // +0.5 then truncation rounds the non-negative mean without a libm call.
-        let colour = std::array::from_fn(|c| {
-            (f32::from(self.colour[c]) * a + f32::from(other.colour[c]) * b + 0.5) as u8
-        });
-        Surfel {
-            position: self.position * a + other.position * b,
-            normal,
-            colour,
-            radius: self.radius.min(self.radius * a + other.radius * b),
-            confidence: total,
-        }
-    }
-}
 
 /// Keeps the items of `values` before `start` and those from `start` on
 /// whose flag in `kept` (one per item from `start`) is true, in order;
