@@ -9,7 +9,7 @@
 //! degree, and ATE.
 //!
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
-//! [--swing-frames N] [--noisy] [--lidar] [--depth-only] [--hand SHARE] [--no-hand-mask] [--no-dead-reckoning]
+//! [--swing-frames N] [--noisy] [--lidar] [--depth-only] [--hand SHARE [--hand-from FRAME]] [--no-hand-mask] [--no-dead-reckoning]
 //! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--tracker icp|joint|rgb] [--smooth-blur] [--verbose
 //! [--from FRAME]]` (`--verbose`: one line per frame for 50 frames from
 //! `--from`, default 30: verdict, the true turn, the pose's error).
@@ -17,7 +17,7 @@
 //! as a Stray Scanner scan without `rgb/` runs natively: no photometric
 //! term, no feature estimate, so no dead reckoning. `--hand 0.3` holds a
 //! hand in view, 0.35 m away over the image's lower-right 30 % of each
-//! side (`synthetic::hold_hand_in_view`). `--lidar` renders at
+//! side (`synthetic::hold_hand_in_view`), from frame `--hand-from` on. `--lidar` renders at
 //! an iPhone's LiDAR depth size instead, 256x192 with Stray Scanner's
 //! intrinsics scaled to it (fx = fy = 193 px), clean.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
@@ -96,6 +96,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut fused_far = 0;
     let mut last_fused: Option<(usize, glam::DAffine3)> = None;
     let hand: f64 = arg(&args, "--hand", 0.0);
+    let hand_from: usize = arg(&args, "--hand-from", 0);
     // `--smooth-blur`: one sample per pixel the view turns during the
     // exposure (at least 5), so that a fast turn smears instead of
     // leaving 5 sharp ghosts.
@@ -123,7 +124,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if depth_only {
             frame.rgb.fill(surfel_slam::dataset::DEPTH_ONLY_GREY);
         }
-        if hand > 0.0 {
+        if hand > 0.0 && i >= hand_from {
             synthetic::hold_hand_in_view(&mut frame, hand, 0.35, i);
         }
         let report = slam.push_frame(&frame, t)?;
@@ -158,12 +159,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let step = synthetic::turn_between_deg(&path.pose(t - 1.0), &path.pose(t));
             let (et, er) = motion_magnitude(&(true_pose.inverse() * report.world_from_camera));
             println!(
-                "{i}: {:?} true turn {step:.1} deg, pose error {:.1} cm {:.1} deg, inliers {}, sparse {:?}",
+                "{i}: {:?} true turn {step:.1} deg, pose error {:.1} cm {:.1} deg, inliers {}, sparse {:?}, masked {:.1} %",
                 report.verdict,
                 100.0 * et,
                 er.to_degrees(),
                 report.inliers,
                 report.checks.sparse.map(|s| s.1),
+                100.0 * report.camera_fixed_share,
             );
         }
         verdicts.push(report.verdict);

@@ -10,6 +10,7 @@
 //! Each stage is a method here, or in the file named after it, that owns
 //! its buffers in [`Pipeline`]'s fields.
 
+mod carried;
 mod config;
 mod input;
 mod localise;
@@ -60,6 +61,9 @@ pub struct Pipeline {
     camera_fixed: CameraFixedMask,
     /// The pushed frame without depth where `camera_fixed` masks it.
     masked_frame: RgbdFrame,
+    /// Set by [`Self::forget_what_the_camera_carried`] when it emptied the
+    /// map: this push's frame starts a new one at that pose (`world_from_camera`).
+    reseed_at: Option<DAffine3>,
     /// `decoded` is the frame of the last push, and that push succeeded.
     decoded_was_pushed: bool,
     scratch: DecodeScratch,
@@ -131,6 +135,7 @@ impl Pipeline {
             decoded: RgbdFrame::default(),
             noisy_frame: RgbdFrame::default(),
             camera_fixed: CameraFixedMask::default(),
+            reseed_at: None,
             masked_frame: RgbdFrame::default(),
             decoded_was_pushed: false,
             scratch: DecodeScratch::default(),
@@ -314,11 +319,16 @@ impl Pipeline {
         }
         let min_frames = self.config.preprocess.camera_fixed_frames;
         let mut masked_share = 0.0;
+        let masked_before = self.camera_fixed.masked_count();
         if min_frames > 0 && self.camera_fixed.observe(frame, min_frames) > 0 {
+            if masked_before == 0 {
+                self.forget_what_the_camera_carried();
+            }
             masked_share = self.camera_fixed.apply_into(frame, &mut masked);
             frame = &masked;
         }
         let mut report = self.push_valid(frame, timestamp);
+        self.reseed_at = None;
         report.camera_fixed_share = masked_share;
         self.noisy_frame = noisy;
         self.masked_frame = masked;
@@ -415,6 +425,14 @@ impl Pipeline {
     /// first frame of a map is the world frame.
     fn track(&mut self) -> Tracked {
         self.keep_for_sparse_and_ferns();
+        if let Some(pose) = self.reseed_at.take() {
+            return Tracked {
+                verdict: Verdict::Restarted,
+                pose,
+                result: None,
+                checks: TrackingChecks::default(),
+            };
+        }
         let tracked = match self.last_good {
             None => Tracked {
                 verdict: Verdict::Initialised,

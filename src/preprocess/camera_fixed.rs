@@ -208,7 +208,23 @@ impl CameraFixedMask {
                         }
                     } else if part[m] != seed {
                         outline += 1;
-                        separated += usize::from(zm <= 0.0 || zm > z * (1.0 + CONTINUOUS));
+                        // A rim masked last frame that is no candidate
+                        // now but steps back right behind: the noisy edge
+                        // of a part already masked, which must not come
+                        // and go with it.
+                        let stepped = |a: usize, za: f32| {
+                            za <= 0.0 || {
+                                neighbours(a).into_iter().flatten().any(|b| {
+                                    let zb = self.depth_m[b];
+                                    zb <= 0.0 || zb > za * (1.0 + CONTINUOUS)
+                                })
+                            }
+                        };
+                        separated += usize::from(
+                            zm <= 0.0
+                                || zm > z * (1.0 + CONTINUOUS)
+                                || (continuous && self.masked[m] && stepped(m, zm)),
+                        );
                     }
                 }
             }
@@ -239,6 +255,64 @@ impl CameraFixedMask {
     #[must_use]
     pub fn masked_count(&self) -> usize {
         self.masked_count
+    }
+
+    /// Decides the mask again from the counts, as [`Self::observe`] did
+    /// at the last frame (for a state rebuilt by [`Self::from_parts`]).
+    pub fn decide_mask_again(&mut self, min_frames: u8) {
+        self.masked_count = self.mask_separated_still_parts(min_frames);
+    }
+
+    /// Which cells the last frame masked (row-major, the grid's cells).
+    #[must_use]
+    pub fn masked_cells(&self) -> &[bool] {
+        &self.masked
+    }
+
+    /// Restores which cells the last frame masked (a session's; ignored
+    /// unless one per cell).
+    pub fn set_masked(&mut self, masked: Vec<bool>) {
+        if masked.len() == self.masked.len() {
+            self.masked_count = masked.iter().filter(|&&m| m).count();
+            self.masked = masked;
+        }
+    }
+
+    /// The most moving frames in a row a masked cell stayed through: how
+    /// long what it masks has anchored the camera (0 when nothing is masked).
+    #[must_use]
+    pub fn longest_masked_still(&self) -> u8 {
+        self.masked
+            .iter()
+            .zip(&self.still)
+            .filter(|(&m, _)| m)
+            .map(|(_, &s)| s)
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Whether a point seen at input pixel `(u, v)`, `z` metres in front
+    /// of the camera, lies on what the last frame masked: a masked cell at
+    /// or next to its pixel was measured within `max(1 cm, 2 %)` of `z`
+    /// there (a surfel the masked thing left in the map, seen from the pose
+    /// it anchored).
+    #[must_use]
+    pub fn covers(&self, u: f32, v: f32, z: f32) -> bool {
+        if self.masked_count == 0 || self.step == 0 || !(z > 0.0 && u >= 0.0 && v >= 0.0) {
+            return false;
+        }
+        // Truncation is floor for these non-negative values.
+        let (x, y) = (u as usize / self.step, v as usize / self.step);
+        if x >= self.cols || y >= self.rows {
+            return false;
+        }
+        let tol = (DEPTH_TOL_RELATIVE * z).max(DEPTH_TOL_M);
+        (y.saturating_sub(1)..(y + 2).min(self.rows)).any(|cy| {
+            (x.saturating_sub(1)..(x + 2).min(self.cols)).any(|cx| {
+                let c = cy * self.cols + cx;
+                self.masked[c] && (self.depth_m[c] - z).abs() <= tol
+            })
+        })
     }
 
     /// Copies `frame` into `out` with the depth of every masked cell's

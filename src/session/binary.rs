@@ -61,6 +61,16 @@ impl<R: Read> LeReader<R> {
             })
     }
 
+    /// The bytes left in the entry (reading to its end checks the
+    /// archive's checksum of it): an optional last field.
+    pub(super) fn rest(mut self) -> Result<Vec<u8>, SessionError> {
+        let mut rest = Vec::new();
+        self.input
+            .read_to_end(&mut rest)
+            .map_err(|e| read_error(self.name, &e))?;
+        Ok(rest)
+    }
+
     /// Checks that the entry has no bytes left; reading to its end also
     /// checks the archive's checksum of it.
     pub(super) fn finish(mut self) -> Result<(), SessionError> {

@@ -14,7 +14,7 @@
 //! | `trajectory.txt` | the trajectory, TUM text (for other tools) | `poses.rs` |
 //! | `poses.txt` | the trajectory and the tracked one, exactly | `poses.rs` |
 //! | `last_frame.bin` | what the next frames remember of the last fused one | `frame_memory.rs` |
-//! | `camera_fixed.bin` | the last frame as the mask of things carried with the camera saw it (optional: older sessions start it afresh) | `camera_fixed.rs` |
+//! | `camera_fixed.bin` | the last frame as the mask of things carried with the camera saw it, and what it masked (optional: older sessions start it afresh) | `camera_fixed.rs` |
 //! | `lost_frame.bin` | while a segment begun by a restart after a long loss is not joined: the last frame placed before the loss (only then) | `frame_memory.rs` |
 //!
 //! Written and read an entry at a time, the surfels a row at a time: no
@@ -260,7 +260,11 @@ fn read<R: Read + Seek>(input: R, camera: Option<&Camera>) -> Result<Pipeline, S
     let camera_fixed = match zip.by_name(CAMERA_FIXED) {
         Err(zip::result::ZipError::FileNotFound) => Default::default(),
         Err(e) => return Err(corrupt(CAMERA_FIXED, e.to_string())),
-        Ok(file) => camera_fixed::read_camera_fixed(BufReader::new(file), input_pixels)?,
+        Ok(file) => camera_fixed::read_camera_fixed(
+            BufReader::new(file),
+            input_pixels,
+            config.preprocess.camera_fixed_frames,
+        )?,
     };
     Pipeline::from_state(PipelineState {
         config,
