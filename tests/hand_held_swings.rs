@@ -504,3 +504,39 @@ fn a_hand_in_view_from_the_first_frame_leaves_nothing_behind_once_masked() {
     assert_eq!(restarted, 1, "the map starts again once");
     assert!(ate_cm < 2.0, "ATE {ate_cm:.2} cm");
 }
+
+#[test]
+fn a_hand_masked_while_localising_leaves_the_map_as_mapping_built_it() {
+    // Mapped without the hand, then localised with it in view: the mask
+    // still takes its depth, but nothing is removed from the map.
+    let config = config(true);
+    let path = SwingPath {
+        amplitude_deg: 20.0,
+        swing_frames: 10.0,
+        ..SwingPath::default()
+    };
+    let (mut frames, _) = frames_along(&config, &path);
+    let mut slam = Pipeline::new(config).expect("valid config");
+    for (i, f) in frames.iter().take(40).enumerate() {
+        slam.push_frame(f, i as f64).expect("accepted");
+    }
+    let bits = |slam: &Pipeline| -> Vec<u32> {
+        let map = slam.map();
+        map.positions()
+            .iter()
+            .flat_map(|p| p.to_array())
+            .chain(map.confidences().iter().copied())
+            .map(f32::to_bits)
+            .collect()
+    };
+    let mapped = bits(&slam);
+    slam.start_localising();
+    let mut masked = 0.0_f64;
+    for (i, f) in frames.iter_mut().enumerate().skip(40).take(30) {
+        synthetic::hold_hand_in_view(f, 0.3, 0.35, i);
+        let r = slam.push_frame(f, i as f64).expect("accepted");
+        masked = masked.max(r.camera_fixed_share);
+    }
+    assert!(masked > 0.05, "the hand was masked ({masked:.3})");
+    assert!(bits(&slam) == mapped, "the map changed while localising");
+}

@@ -321,7 +321,8 @@ impl Pipeline {
         let mut masked_share = 0.0;
         let masked_before = self.camera_fixed.masked_count();
         if min_frames > 0 && self.camera_fixed.observe(frame, min_frames) > 0 {
-            if masked_before == 0 {
+            // Localising leaves the map as mapping built it.
+            if masked_before == 0 && self.localising.is_none() {
                 self.forget_what_the_camera_carried();
             }
             masked_share = self.camera_fixed.apply_into(frame, &mut masked);
