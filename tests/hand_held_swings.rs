@@ -366,6 +366,24 @@ fn the_real_kitchen_at_every_eighth_frame_keeps_its_track() {
     assert!(ate_off > 2.0 * ate_on, "off: ATE {ate_off:.2} cm");
 }
 
+/// The 20-degree swing in 10 frames: slow enough that the hand, not the
+/// swing, decides the hand tests.
+fn gentle_swing() -> SwingPath {
+    SwingPath {
+        amplitude_deg: 20.0,
+        swing_frames: 10.0,
+        ..SwingPath::default()
+    }
+}
+
+/// A hand held in view in `frames` from frame `from` on: the image's
+/// lower-right 30 % of each side, 0.35 m away.
+fn hold_hand_from(frames: &mut [RgbdFrame], from: usize) {
+    for (i, f) in frames.iter_mut().enumerate().skip(from) {
+        synthetic::hold_hand_in_view(f, 0.3, 0.35, i);
+    }
+}
+
 /// ATE (cm) of the first [`FRAMES`] frames of the 20-degree, 10-frame
 /// swing path with a hand held in view over the image's lower-right 30 %
 /// of each side, 0.35 m away, and the mask of things carried with the
@@ -373,15 +391,9 @@ fn the_real_kitchen_at_every_eighth_frame_keeps_its_track() {
 fn with_hand_in_view(camera_fixed_frames: u8) -> (f64, usize) {
     let mut config = config(true);
     config.preprocess.camera_fixed_frames = camera_fixed_frames;
-    let path = SwingPath {
-        amplitude_deg: 20.0,
-        swing_frames: 10.0,
-        ..SwingPath::default()
-    };
+    let path = gentle_swing();
     let (mut frames, truth) = frames_along(&config, &path);
-    for (i, f) in frames.iter_mut().enumerate() {
-        synthetic::hold_hand_in_view(f, 0.3, 0.35, i);
-    }
+    hold_hand_from(&mut frames, 0);
     let mut slam = Pipeline::new(config).expect("valid config");
     let mut lost = 0;
     for (i, f) in frames.iter().enumerate() {
@@ -409,15 +421,9 @@ fn a_hand_in_view_does_not_hold_the_camera_back() {
 #[test]
 fn a_session_saved_while_a_hand_is_masked_continues_exactly() {
     let config = config(true);
-    let path = SwingPath {
-        amplitude_deg: 20.0,
-        swing_frames: 10.0,
-        ..SwingPath::default()
-    };
+    let path = gentle_swing();
     let (mut frames, _) = frames_along(&config, &path);
-    for (i, f) in frames.iter_mut().enumerate() {
-        synthetic::hold_hand_in_view(f, 0.3, 0.35, i);
-    }
+    hold_hand_from(&mut frames, 0);
     let mut straight = Pipeline::new(config.clone()).unwrap();
     let straight_reports = run(&mut straight, &frames, 0);
     let expected = Bits::of(&straight);
@@ -510,11 +516,7 @@ fn a_hand_masked_while_localising_leaves_the_map_as_mapping_built_it() {
     // Mapped without the hand, then localised with it in view: the mask
     // still takes its depth, but nothing is removed from the map.
     let config = config(true);
-    let path = SwingPath {
-        amplitude_deg: 20.0,
-        swing_frames: 10.0,
-        ..SwingPath::default()
-    };
+    let path = gentle_swing();
     let (mut frames, _) = frames_along(&config, &path);
     let mut slam = Pipeline::new(config).expect("valid config");
     for (i, f) in frames.iter().take(40).enumerate() {
@@ -532,8 +534,8 @@ fn a_hand_masked_while_localising_leaves_the_map_as_mapping_built_it() {
     let mapped = bits(&slam);
     slam.start_localising();
     let mut masked = 0.0_f64;
-    for (i, f) in frames.iter_mut().enumerate().skip(40).take(30) {
-        synthetic::hold_hand_in_view(f, 0.3, 0.35, i);
+    hold_hand_from(&mut frames, 40);
+    for (i, f) in frames.iter().enumerate().skip(40).take(30) {
         let r = slam.push_frame(f, i as f64).expect("accepted");
         masked = masked.max(r.camera_fixed_share);
     }
