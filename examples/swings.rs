@@ -189,6 +189,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         100.0 * result.rmse_m,
         result.pairs,
     );
+    // The judge of a scan that ends where it began: the last frame's pose
+    // relative to the first, against the truth's.
+    if let (Some(first), Some(last)) = (estimate.first(), estimate.last()) {
+        let true_first = truth.iter().find(|(t, _)| *t == first.0).map(|p| p.1);
+        let true_last = truth.iter().find(|(t, _)| *t == last.0).map(|p| p.1);
+        if let (Some(tf), Some(tl)) = (true_first, true_last) {
+            let estimated = first.1.inverse() * last.1;
+            let actual = tf.inverse() * tl;
+            let (dt, dr) = motion_magnitude(&(actual.inverse() * estimated));
+            let (span, _) = motion_magnitude(&actual);
+            println!(
+                "last frame relative to the first: {:.2} cm, {:.2} deg off the truth's (which spans {:.1} cm)",
+                100.0 * dt,
+                dr.to_degrees(),
+                100.0 * span
+            );
+        }
+    }
     let line: String = verdicts
         .iter()
         .map(|v| match v {

@@ -260,15 +260,37 @@ impl FernDatabase {
                 "saved keyframes do not fit the fern configuration",
             ));
         }
-        for (id, k) in keyframes.iter().enumerate() {
+        self.keyframes = keyframes;
+        self.index_keyframes();
+        Ok(())
+    }
+
+    /// Forgets the keyframes taken at frame `first` or later (their poses
+    /// were found wrong); the others and their order stay.
+    pub fn forget_from(&mut self, first: u32) {
+        if self.keyframes.iter().all(|k| k.frame_index < first) {
+            return;
+        }
+        let kept: Vec<Keyframe> = std::mem::take(&mut self.keyframes)
+            .into_iter()
+            .filter(|k| k.frame_index < first)
+            .collect();
+        self.keyframes = kept;
+        self.index_keyframes();
+    }
+
+    /// Rebuilds the lists of keyframes by fern code from `self.keyframes`.
+    fn index_keyframes(&mut self) {
+        for lists in &mut self.ids {
+            lists.iter_mut().for_each(Vec::clear);
+        }
+        for (id, k) in self.keyframes.iter().enumerate() {
             for (lists, &c) in self.ids.iter_mut().zip(&k.frame.codes) {
                 if let Some(list) = lists.get_mut(usize::from(c)) {
                     list.push(id as u32);
                 }
             }
         }
-        self.keyframes = keyframes;
-        Ok(())
     }
 
     /// Forgets every keyframe (the ferns stay: codes stay comparable).

@@ -9,10 +9,27 @@
 //! are drawn and exported as a blob, and the prediction shows them where
 //! the scene should be.
 
+use super::recovery::Tracked;
 use super::segments::Segment;
-use super::Pipeline;
-use crate::se3::RigidF32;
+use super::{Pipeline, Verdict};
+use crate::se3::{self, RigidF32};
 use glam::DAffine3;
+
+/// Frames after a carried thing was first masked in which the camera is
+/// placed again by the map from before it: a second, as a segment's join
+/// is first tried (a swing's end can leave no view that pins a pose).
+const REPLACE_WITHIN_FRAMES: u32 = 30;
+
+/// The frames a carried thing anchored, to place the camera again by the
+/// map from before them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Anchored {
+    /// The first frame it anchored: keyframes and surfels from before it
+    /// place the camera.
+    pub from: u32,
+    /// The last frame tried.
+    pub until: u32,
+}
 
 impl Pipeline {
     /// On the frame the mask first masks something: absorbs the live
@@ -61,11 +78,96 @@ impl Pipeline {
         if self.map.live_len() == 0 {
             self.start_map_again(world_from_camera);
         } else {
+            // Keyframes the anchored camera took were placed where it was
+            // not.
+            self.relocaliser.database_mut().forget_from(anchored_from);
+            self.anchored = Some(Anchored {
+                from: anchored_from,
+                until: self.frame_index.saturating_add(REPLACE_WITHIN_FRAMES),
+            });
             // This frame is tracked against what is left.
             let dead_reckoned = self.counts.lost_streak > 0;
             self.render_prediction(&world_from_camera, dead_reckoned);
         }
         gone.len()
+    }
+
+    /// After a carried thing was first masked, when the map before it
+    /// stayed: the camera it anchored moved in the map while it did not in
+    /// the room, so the poses since carry that error. Each frame up to
+    /// [`REPLACE_WITHIN_FRAMES`] after is placed again by the keyframes
+    /// from before the anchored frames, against the surfels made before
+    /// them (relocalisation's checks). The first placement replaces
+    /// `tracked` as [`Verdict::Recovered`]; the surfels made since the
+    /// anchored frames began go (placed by the wrong poses), and the next
+    /// frame starts from it without the correction as its velocity. Other
+    /// frames pass unchanged.
+    pub(super) fn place_as_before_carried(&mut self, tracked: Tracked) -> Tracked {
+        let Some(anchored) = self.anchored else {
+            return tracked;
+        };
+        let start = self.segment.start;
+        if self.frame_index > anchored.until
+            || anchored.from <= start
+            || !self.relocaliser.config().enabled
+        {
+            self.anchored = None;
+            return tracked;
+        }
+        let fused = self.fused_in_segment();
+        let found = self.place_by_keyframes_of(
+            start..anchored.from,
+            (start..u32::MAX, anchored.from),
+            fused,
+        );
+        let Some(found) = found else {
+            return tracked;
+        };
+        self.anchored = None;
+        self.forget_made_since(anchored.from);
+        self.spread_correction(anchored.from, &tracked.pose, &found.world_from_camera);
+        self.last_good = Some(found.world_from_camera);
+        let mut checks = tracked.checks;
+        checks.free_space_final = found.free_space;
+        checks.relocalised_from = Some(found.keyframe_frame);
+        Tracked::new(
+            Verdict::Recovered,
+            found.world_from_camera,
+            Some(found.result),
+            checks,
+        )
+    }
+
+    /// The trajectory's frames from `first` to the last, placed by the
+    /// anchored camera, corrected as the frame after them was
+    /// (`world_from_camera` from `tracked` to `placed`): a share of the
+    /// correction (in the camera's frame) growing linearly to it, as the
+    /// anchored error grew frame by frame.
+    fn spread_correction(&mut self, first: u32, tracked: &DAffine3, placed: &DAffine3) {
+        let correction = se3::log(&(tracked.inverse() * *placed));
+        if !correction.iter().all(|c| c.is_finite()) {
+            return;
+        }
+        let frames = self.frame_index.saturating_sub(first) as usize;
+        let count = frames.min(self.trajectory.len());
+        let steps = (count + 1) as f64;
+        let from = self.trajectory.len() - count;
+        for (n, (_, pose)) in self.trajectory[from..].iter_mut().enumerate() {
+            let share = (n + 1) as f64 / steps;
+            *pose *= se3::exp(&correction.map(|c| c * share));
+        }
+    }
+
+    /// Absorbs the live surfels first seen at frame `first` or later and
+    /// forgets the keyframes taken since.
+    fn forget_made_since(&mut self, first: u32) {
+        let made: Vec<usize> = (0..self.map.len())
+            .filter(|&i| self.map.confidences()[i] >= 0.0 && self.map.first_seen()[i] >= first)
+            .collect();
+        for i in made {
+            self.map.absorb(i);
+        }
+        self.relocaliser.database_mut().forget_from(first);
     }
 
     /// Empties the map (and what indexes it: the spatial order, the

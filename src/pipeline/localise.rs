@@ -82,6 +82,8 @@ impl Pipeline {
     /// (the map is the one loaded).
     pub fn start_localising(&mut self) {
         self.localising = Some(Box::default());
+        // Placing the camera again after a carried thing changes the map.
+        self.anchored = None;
     }
 
     /// Whether the pipeline is in localise mode ([`Self::start_localising`]).

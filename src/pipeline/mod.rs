@@ -64,6 +64,10 @@ pub struct Pipeline {
     /// Set by [`Self::forget_what_the_camera_carried`] when it emptied the
     /// map: this push's frame starts a new one at that pose (`world_from_camera`).
     reseed_at: Option<DAffine3>,
+    /// Set by [`Self::forget_what_the_camera_carried`] when it left a map:
+    /// the frames the carried thing anchored, until the camera is placed
+    /// again by the map from before them.
+    anchored: Option<carried::Anchored>,
     /// `decoded` is the frame of the last push, and that push succeeded.
     decoded_was_pushed: bool,
     scratch: DecodeScratch,
@@ -137,6 +141,7 @@ impl Pipeline {
             camera_fixed: CameraFixedMask::default(),
             reseed_at: None,
             masked_frame: RgbdFrame::default(),
+            anchored: None,
             decoded_was_pushed: false,
             scratch: DecodeScratch::default(),
             settings_check: SettingsCheck::default(),
@@ -251,6 +256,7 @@ impl Pipeline {
         self.last_good = None;
         self.placed_frame = 0;
         self.measured_frame = None;
+        self.anchored = None;
         self.sparse.clear();
         self.relocaliser.clear();
         self.velocity = None;
@@ -445,7 +451,8 @@ impl Pipeline {
                 self.track_or_recover(&previous, self.velocity, self.counts.lost_streak)
             }
         };
-        self.relocalise_if_lost(tracked)
+        let tracked = self.relocalise_if_lost(tracked);
+        self.place_as_before_carried(tracked)
     }
 
     /// Keeps the pyramid's frame for the sparse estimate (this frame

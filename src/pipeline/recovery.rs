@@ -30,7 +30,7 @@ pub(super) struct Tracked {
 impl Tracked {
     /// A `Tracked` verdict becomes `Held` when `result` held directions
     /// (not when the pose is the sparse estimate alone, which pins all six).
-    fn new(
+    pub(super) fn new(
         verdict: Verdict,
         pose: DAffine3,
         result: Option<TrackResult>,
@@ -568,14 +568,26 @@ impl Pipeline {
         frames: std::ops::Range<u32>,
         fused: u32,
     ) -> Option<Relocalisation> {
+        self.place_by_keyframes_of(frames.clone(), (frames, u32::MAX), fused)
+    }
+
+    /// As [`Self::place_by_keyframes`], from the keyframes of frames in
+    /// `keyframes`, against the stable surfels last seen in `seen.0` and
+    /// first seen before frame `seen.1`.
+    pub(super) fn place_by_keyframes_of(
+        &mut self,
+        keyframes: std::ops::Range<u32>,
+        (seen, made_before): (std::ops::Range<u32>, u32),
+        fused: u32,
+    ) -> Option<Relocalisation> {
         let map = &self.map;
         let fusion = self.config.fusion;
         self.relocaliser.place(
             &self.pyramid,
             Model {
                 map,
-                seen: frames.clone(),
-                include: |i| fusion.predicts(map, i, fused),
+                seen,
+                include: |i| map.first_seen()[i] < made_before && fusion.predicts(map, i, fused),
                 far_m: self.config.depth.max_m,
             },
             Trackers {
@@ -584,7 +596,7 @@ impl Pipeline {
                 min_conditioning: RECOVERY_MIN_CONDITIONING,
             },
             &mut self.tracker,
-            frames,
+            keyframes,
         )
     }
 

@@ -43,6 +43,11 @@ pub struct PipelineScalars {
     pub configured_noise: (SensorNoise, SensorNoise),
     /// The map's current segment (the default: since the first frame).
     pub segment: Segment,
+    /// After a thing carried with the camera was first masked, while the
+    /// camera is still to be placed again by the map from before it: the
+    /// first frame it anchored and the last frame to try (`None` in
+    /// sessions saved before it was kept).
+    pub anchored: Option<[u32; 2]>,
 }
 
 /// The last fused frame as the sparse estimator keeps it: working colour
@@ -153,6 +158,7 @@ impl Pipeline {
                 depth_checked: self.settings_check.depth_checked,
                 configured_noise: self.configured_noise,
                 segment: self.segment,
+                anchored: self.anchored.map(|a| [a.from, a.until]),
             },
             map: &self.map,
             runs: self.order.runs(),
@@ -230,6 +236,16 @@ impl Pipeline {
             return Err(bad(format!("measured frame {m} for {frames} frames")));
         }
         p.measured_frame = s.measured_frame;
+        if let Some([from, until]) = s.anchored {
+            if from > s.frames || until < from {
+                return Err(bad(format!(
+                    "anchored frames {from} to {until} for {frames} frames"
+                )));
+            }
+        }
+        p.anchored = s
+            .anchored
+            .map(|[from, until]| super::carried::Anchored { from, until });
         p.velocity = s.velocity;
         p.loop_closer.restore_counters(s.loop_counters);
         p.settings_check.depth_checked = s.depth_checked;

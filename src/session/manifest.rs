@@ -109,6 +109,10 @@ pub struct Manifest {
     pub measured_frame: Option<u32>,
     /// Motion of the last two fused frames in a row (`previous_from_current`).
     pub velocity: Option<[f64; 12]>,
+    /// `[first anchored frame, last frame to try]` while the camera is to
+    /// be placed again after a carried thing was masked (absent: none).
+    #[serde(default)]
+    pub anchored: Option<[u32; 2]>,
     /// Loop closures so far.
     pub loop_closures: u32,
     /// Of those, the global ones.
@@ -151,6 +155,7 @@ impl Manifest {
             placed_frame: s.placed_frame,
             measured_frame: s.measured_frame,
             velocity: s.velocity.as_ref().map(pose_to_rows),
+            anchored: s.anchored,
             loop_closures: s.loop_counters.0,
             global_loop_closures: s.loop_counters.1,
             last_global_closure: s.loop_counters.2,
@@ -207,6 +212,7 @@ impl Manifest {
             placed_frame: self.placed_frame,
             measured_frame: self.measured_frame,
             velocity: self.velocity.as_ref().map(pose_from_rows),
+            anchored: self.anchored,
             loop_counters: (
                 self.loop_closures,
                 self.global_loop_closures,
