@@ -6,7 +6,8 @@
 //! and tracked at 320x240).
 //! Prints frames lost, the longest lost stretch, held and recovered
 //! frames, tracked frames off the truth's motion by more than 1 cm / 1
-//! degree, and ATE.
+//! degree, ATE, and how far the last frame's pose relative to the first is
+//! from the truth's (what a scan that ends where it began is judged by).
 //!
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
 //! [--swing-frames N] [--noisy] [--lidar] [--depth-only] [--hand SHARE [--hand-from FRAME]] [--no-hand-mask] [--no-dead-reckoning]

@@ -13,12 +13,18 @@ use super::recovery::Tracked;
 use super::segments::Segment;
 use super::{Pipeline, Verdict};
 use crate::se3::{self, RigidF32};
+use crate::RgbdFrame;
 use glam::DAffine3;
 
 /// Frames after a carried thing was first masked in which the camera is
 /// placed again by the map from before it: a second, as a segment's join
 /// is first tried (a swing's end can leave no view that pins a pose).
 const REPLACE_WITHIN_FRAMES: u32 = 30;
+
+/// Frames the map's first frame is kept for, in case a thing carried with
+/// the camera was in view from it: two seconds at 30 Hz, well past the
+/// mask's 6 moving frames.
+pub(super) const FIRST_FRAME_KEPT_FRAMES: u32 = 64;
 
 /// The frames a carried thing anchored, to place the camera again by the
 /// map from before them.
@@ -76,7 +82,12 @@ impl Pipeline {
             return 0;
         }
         if self.map.live_len() == 0 {
-            self.start_map_again(world_from_camera);
+            match self.first_frame.take() {
+                Some(first) if anchored_from == 0 => {
+                    self.map_again_from_first(&first, world_from_camera);
+                }
+                _ => self.start_map_again(world_from_camera),
+            }
         } else {
             // Keyframes the anchored camera took were placed where it was
             // not.
@@ -168,6 +179,59 @@ impl Pipeline {
             self.map.absorb(i);
         }
         self.relocaliser.database_mut().forget_from(first);
+    }
+
+    /// Keeps the map's first frame (`frame`, as the mask sees it) while
+    /// the mask (on after `min_frames` moving frames) has masked nothing,
+    /// for at most [`FIRST_FRAME_KEPT_FRAMES`] frames.
+    pub(super) fn keep_first_frame(&mut self, frame: &RgbdFrame, min_frames: u8) {
+        if self.frame_index == 0 && min_frames > 0 && self.localising.is_none() {
+            self.first_frame = Some(Box::new(frame.clone()));
+        } else if self.frame_index >= FIRST_FRAME_KEPT_FRAMES
+            || self.camera_fixed.masked_count() > 0
+        {
+            self.first_frame = None;
+        }
+    }
+
+    /// The map begun again from its first frame (`first`), masked now,
+    /// fused where it was placed (the world's origin), and this frame
+    /// tracked against it: the frames the thing anchored since are
+    /// replaced as this one is placed ([`Self::spread_over_anchored`]),
+    /// not carried over as the new map's start (`anchored`: the last
+    /// pose they reached).
+    fn map_again_from_first(&mut self, first: &RgbdFrame, anchored: DAffine3) {
+        let Some(&(_, origin)) = self.trajectory.first() else {
+            self.start_map_again(anchored);
+            return;
+        };
+        self.start_map_again(origin);
+        self.reseed_at = None;
+        let mut masked = RgbdFrame::default();
+        self.camera_fixed.apply_into(first, &mut masked);
+        // Fused and remembered as frame 0 was.
+        let now = self.frame_index;
+        self.frame_index = 0;
+        self.preprocess(&masked);
+        self.keep_for_sparse_and_ferns();
+        self.fuse(&origin, 0);
+        // No velocity: the step from the anchored pose is not a motion.
+        self.last_good = None;
+        self.predict(&origin, false);
+        self.frame_index = now;
+        self.anchored_last = Some(anchored);
+    }
+
+    /// After [`Self::map_again_from_first`]: once this frame is placed,
+    /// the frames since the first take a share of its correction from the
+    /// last anchored pose, growing to it frame by frame.
+    pub(super) fn spread_over_anchored(&mut self, tracked: &Tracked) {
+        let Some(anchored) = self.anchored_last.take() else {
+            return;
+        };
+        if tracked.verdict.is_fused() {
+            self.spread_correction(1, &anchored, &tracked.pose);
+        }
     }
 
     /// Empties the map (and what indexes it: the spatial order, the

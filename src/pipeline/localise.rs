@@ -84,6 +84,7 @@ impl Pipeline {
         self.localising = Some(Box::default());
         // Placing the camera again after a carried thing changes the map.
         self.anchored = None;
+        self.first_frame = None;
     }
 
     /// Whether the pipeline is in localise mode ([`Self::start_localising`]).

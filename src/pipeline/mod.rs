@@ -68,6 +68,15 @@ pub struct Pipeline {
     /// the frames the carried thing anchored, until the camera is placed
     /// again by the map from before them.
     anchored: Option<carried::Anchored>,
+    /// The map's first frame as pushed (simulated noise applied), while a
+    /// thing carried with the camera may still turn out to have been in
+    /// it: until the mask first masks something, for at most
+    /// [`carried::FIRST_FRAME_KEPT_FRAMES`] frames.
+    first_frame: Option<Box<RgbdFrame>>,
+    /// Set when the map was begun again from `first_frame` on this push:
+    /// the last pose the carried thing anchored, whose frames take a share
+    /// of the correction once this frame is tracked.
+    anchored_last: Option<DAffine3>,
     /// `decoded` is the frame of the last push, and that push succeeded.
     decoded_was_pushed: bool,
     scratch: DecodeScratch,
@@ -142,6 +151,8 @@ impl Pipeline {
             reseed_at: None,
             masked_frame: RgbdFrame::default(),
             anchored: None,
+            first_frame: None,
+            anchored_last: None,
             decoded_was_pushed: false,
             scratch: DecodeScratch::default(),
             settings_check: SettingsCheck::default(),
@@ -257,6 +268,8 @@ impl Pipeline {
         self.placed_frame = 0;
         self.measured_frame = None;
         self.anchored = None;
+        self.first_frame = None;
+        self.anchored_last = None;
         self.sparse.clear();
         self.relocaliser.clear();
         self.velocity = None;
@@ -324,6 +337,7 @@ impl Pipeline {
             frame = &noisy;
         }
         let min_frames = self.config.preprocess.camera_fixed_frames;
+        self.keep_first_frame(frame, min_frames);
         let mut masked_share = 0.0;
         let masked_before = self.camera_fixed.masked_count();
         if min_frames > 0 && self.camera_fixed.observe(frame, min_frames) > 0 {
@@ -452,7 +466,9 @@ impl Pipeline {
             }
         };
         let tracked = self.relocalise_if_lost(tracked);
-        self.place_as_before_carried(tracked)
+        let tracked = self.place_as_before_carried(tracked);
+        self.spread_over_anchored(&tracked);
+        tracked
     }
 
     /// Keeps the pyramid's frame for the sparse estimate (this frame

@@ -13,6 +13,7 @@ use crate::noise::SensorNoise;
 use crate::preprocess::camera_fixed::CameraFixedMask;
 use crate::track::rgb::{PhotometricReference, ReferencePoint};
 use crate::track::TrackerMode;
+use crate::RgbdFrame;
 use glam::{DAffine3, Vec3};
 use std::ops::Range;
 
@@ -91,6 +92,9 @@ pub struct StateView<'a> {
     /// While a restarted segment is not joined: the last frame placed
     /// before the loss.
     pub lost_frame: Option<LastFusedFrame<&'a [u8], &'a [Vec3]>>,
+    /// The map's first frame as pushed, while a thing carried with the
+    /// camera may still turn out to have been in it.
+    pub first_frame: Option<&'a RgbdFrame>,
 }
 
 /// The pipeline's state, owned ([`Pipeline::from_state`]).
@@ -119,6 +123,10 @@ pub struct PipelineState {
     /// While a restarted segment is not joined: the last frame placed
     /// before the loss (`None` in sessions saved before restarts).
     pub lost_frame: Option<LastFusedFrame<Vec<u8>, Vec<Vec3>>>,
+    /// The map's first frame as pushed, while a thing carried with the
+    /// camera may still turn out to have been in it (`None` in sessions
+    /// saved before it was kept).
+    pub first_frame: Option<RgbdFrame>,
 }
 
 /// Whether the tracker keeps the last frame for its photometric term.
@@ -174,6 +182,7 @@ impl Pipeline {
                 width: f.width,
                 height: f.height,
             }),
+            first_frame: self.first_frame.as_deref(),
         }
     }
 
@@ -263,6 +272,16 @@ impl Pipeline {
             }
         }
         p.lost_frame = state.lost_frame.map(Box::new);
+        if let Some(first) = &state.first_frame {
+            let k = p.config.intrinsics;
+            if (first.width, first.height) != (k.width, k.height) || s.frames == 0 {
+                return Err(bad(format!(
+                    "a first frame of {}x{} for a {}x{} camera after {frames} frames",
+                    first.width, first.height, k.width, k.height
+                )));
+            }
+        }
+        p.first_frame = state.first_frame.map(Box::new);
         p.camera_fixed = state.camera_fixed;
         if remembers_frames(&p.config) {
             p.tracker.restore_photometric_memory(state.photometric);

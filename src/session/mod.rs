@@ -16,6 +16,7 @@
 //! | `last_frame.bin` | what the next frames remember of the last fused one | `frame_memory.rs` |
 //! | `camera_fixed.bin` | the last frame as the mask of things carried with the camera saw it, and what it masked (optional: older sessions start it afresh) | `camera_fixed.rs` |
 //! | `lost_frame.bin` | while a segment begun by a restart after a long loss is not joined: the last frame placed before the loss (only then) | `frame_memory.rs` |
+//! | `first_frame.bin` | the map's first frame as pushed, while a thing carried with the camera may still turn out to have been in it (only then) | `first_frame.rs` |
 //!
 //! Written and read an entry at a time, the surfels a row at a time: no
 //! copy of the map's bytes is held. A file that is cut short, damaged,
@@ -26,6 +27,7 @@
 mod binary;
 mod camera_fixed;
 mod error;
+mod first_frame;
 mod frame_memory;
 mod keyframes;
 mod manifest;
@@ -54,6 +56,7 @@ const MAP_INDEX: &str = "map_index.bin";
 const KEYFRAMES: &str = "keyframes.bin";
 const TRAJECTORY: &str = "trajectory.txt";
 const POSES: &str = "poses.txt";
+use first_frame::FIRST_FRAME;
 use frame_memory::{LAST_FRAME, LOST_FRAME};
 const CAMERA_FIXED: &str = "camera_fixed.bin";
 
@@ -119,6 +122,11 @@ pub fn save<W: Write + Seek>(pipeline: &Pipeline, out: W) -> Result<W, SessionEr
     if let Some(lost) = &state.lost_frame {
         entry(LOST_FRAME, &mut |w| {
             frame_memory::write_frame_memory(w, Some(lost), &[])
+        })?;
+    }
+    if let Some(first) = state.first_frame {
+        entry(FIRST_FRAME, &mut |w| {
+            first_frame::write_first_frame(w, first)
         })?;
     }
     zip.finish().map_err(|e| failed(&e))
@@ -266,6 +274,14 @@ fn read<R: Read + Seek>(input: R, camera: Option<&Camera>) -> Result<Pipeline, S
             config.preprocess.camera_fixed_frames,
         )?,
     };
+    let first_frame = match zip.by_name(FIRST_FRAME) {
+        Err(zip::result::ZipError::FileNotFound) => None,
+        Err(e) => return Err(corrupt(FIRST_FRAME, e.to_string())),
+        Ok(file) => Some(first_frame::read_first_frame(
+            BufReader::new(file),
+            (config.intrinsics.width, config.intrinsics.height),
+        )?),
+    };
     Pipeline::from_state(PipelineState {
         config,
         scalars: manifest.scalars(),
@@ -278,6 +294,7 @@ fn read<R: Read + Seek>(input: R, camera: Option<&Camera>) -> Result<Pipeline, S
         photometric,
         camera_fixed,
         lost_frame,
+        first_frame,
     })
     .map_err(|e| SessionError::Corrupt(e.to_string()))
 }
