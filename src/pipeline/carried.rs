@@ -7,7 +7,8 @@
 //! them where the anchored camera saw them, so they hang in front of the
 //! camera's last pose, at the masked pixels and depths. Left there, they
 //! are drawn and exported as a blob, and the prediction shows them where
-//! the scene should be.
+//! the scene should be. And the camera they anchored was placed where it
+//! was not: its pose is found again from what the map held before.
 
 use super::recovery::Tracked;
 use super::segments::Segment;
@@ -43,10 +44,12 @@ impl Pipeline {
     /// cells at their depth ([`crate::preprocess::camera_fixed::CameraFixedMask::covers`]),
     /// and those first seen in the frames the masked thing anchored
     /// (placed where an anchored camera saw them). A map left without a
-    /// live surfel (the thing was in view since the map began) starts
-    /// again with this frame, at the last placed pose
+    /// live surfel (the thing was in view since the map began) begins
+    /// again from its first frame ([`Self::map_again_from_first`]), or
+    /// when that is not kept, with this frame at the last placed pose
     /// ([`super::Verdict::Restarted`]); otherwise the prediction is
-    /// rendered again without them. Returns how many surfels went.
+    /// rendered again without them, and the camera is to be placed again
+    /// ([`Self::place_as_before_carried`]). Returns how many surfels went.
     pub(super) fn forget_what_the_camera_carried(&mut self) -> usize {
         let Some(world_from_camera) = self.last_good else {
             return 0;
