@@ -54,9 +54,22 @@ fn frames(config: &SlamConfig) -> (Vec<RgbdFrame>, Vec<(f64, DAffine3)>) {
 
 /// [`frames`] along `path`.
 fn frames_along(config: &SlamConfig, path: &SwingPath) -> (Vec<RgbdFrame>, Vec<(f64, DAffine3)>) {
+    rendered_along(config, path, FRAMES, None)
+}
+
+/// `frames` frames rendered at `config`'s size along `path`, with a hand
+/// in view from frame `hand_from` (the image's lower-right 30 % of each
+/// side, 0.35 m away), and the true `world_from_camera` of each (the
+/// first frame's camera is the world).
+fn rendered_along(
+    config: &SlamConfig,
+    path: &SwingPath,
+    frames: usize,
+    hand_from: Option<usize>,
+) -> (Vec<RgbdFrame>, Vec<(f64, DAffine3)>) {
     let scene = Scene::room();
     let origin = path.pose(0.0).inverse();
-    (0..FRAMES)
+    (0..frames)
         .map(|i| {
             let t = i as f64;
             let rendered = render_blurred(
@@ -66,7 +79,10 @@ fn frames_along(config: &SlamConfig, path: &SwingPath) -> (Vec<RgbdFrame>, Vec<(
                 &NoiseModel::none(),
                 i as u64,
             );
-            let frame = rendered.to_frame(&config.depth).expect("a valid frame");
+            let mut frame = rendered.to_frame(&config.depth).expect("a valid frame");
+            if hand_from.is_some_and(|from| i >= from) {
+                synthetic::hold_hand_in_view(&mut frame, 0.3, 0.35, i);
+            }
             (frame, (t, origin * path.pose(t)))
         })
         .unzip()
@@ -471,25 +487,7 @@ fn noisy_hand_frames(
         sensor: SimulatedSensor::KinectV1,
         seed: 1,
     });
-    let scene = Scene::room();
-    let origin = path.pose(0.0).inverse();
-    let (rendered, truth) = (0..frames)
-        .map(|i| {
-            let t = i as f64;
-            let rendered = render_blurred(
-                &scene,
-                &config.intrinsics,
-                &path.exposure(t, 0.5, 5),
-                &NoiseModel::none(),
-                i as u64,
-            );
-            let mut frame = rendered.to_frame(&config.depth).expect("a valid frame");
-            if i >= hand_from {
-                synthetic::hold_hand_in_view(&mut frame, 0.3, 0.35, i);
-            }
-            (frame, (t, origin * path.pose(t)))
-        })
-        .unzip();
+    let (rendered, truth) = rendered_along(&config, path, frames, Some(hand_from));
     (config, rendered, truth)
 }
 

@@ -12,7 +12,7 @@
 
 use super::recovery::Tracked;
 use super::segments::Segment;
-use super::{Pipeline, Verdict};
+use super::Pipeline;
 use crate::se3::{self, RigidF32};
 use crate::RgbdFrame;
 use glam::DAffine3;
@@ -112,7 +112,7 @@ impl Pipeline {
     /// [`REPLACE_WITHIN_FRAMES`] after is placed again by the keyframes
     /// from before the anchored frames, against the surfels made before
     /// them (relocalisation's checks). The first placement replaces
-    /// `tracked` as [`Verdict::Recovered`]; the surfels made since the
+    /// `tracked` as [`super::Verdict::Recovered`]; the surfels made since the
     /// anchored frames began go (placed by the wrong poses), and the next
     /// frame starts from it without the correction as its velocity. Other
     /// frames pass unchanged.
@@ -141,15 +141,7 @@ impl Pipeline {
         self.forget_made_since(anchored.from);
         self.spread_correction(anchored.from, &tracked.pose, &found.world_from_camera);
         self.last_good = Some(found.world_from_camera);
-        let mut checks = tracked.checks;
-        checks.free_space_final = found.free_space;
-        checks.relocalised_from = Some(found.keyframe_frame);
-        Tracked::new(
-            Verdict::Recovered,
-            found.world_from_camera,
-            Some(found.result),
-            checks,
-        )
+        Tracked::relocalised(tracked.checks, found)
     }
 
     /// The trajectory's frames from `first` to the last, placed by the

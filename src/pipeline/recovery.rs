@@ -28,9 +28,23 @@ pub(super) struct Tracked {
 }
 
 impl Tracked {
+    /// A frame placed by relocalisation (`found`) as
+    /// [`Verdict::Recovered`], with the tracker's `checks` and the
+    /// placement's.
+    pub(super) fn relocalised(mut checks: TrackingChecks, found: Relocalisation) -> Self {
+        checks.free_space_final = found.free_space;
+        checks.relocalised_from = Some(found.keyframe_frame);
+        Self::new(
+            Verdict::Recovered,
+            found.world_from_camera,
+            Some(found.result),
+            checks,
+        )
+    }
+
     /// A `Tracked` verdict becomes `Held` when `result` held directions
     /// (not when the pose is the sparse estimate alone, which pins all six).
-    pub(super) fn new(
+    fn new(
         verdict: Verdict,
         pose: DAffine3,
         result: Option<TrackResult>,
@@ -612,18 +626,9 @@ impl Pipeline {
         if !self.relocaliser.config().enabled {
             return tracked;
         }
-        let found = self.place_in_whole_map();
-        let Some(found) = found else {
-            return tracked;
-        };
-        let mut checks = tracked.checks;
-        checks.free_space_final = found.free_space;
-        checks.relocalised_from = Some(found.keyframe_frame);
-        Tracked::new(
-            Verdict::Recovered,
-            found.world_from_camera,
-            Some(found.result),
-            checks,
-        )
+        match self.place_in_whole_map() {
+            Some(found) => Tracked::relocalised(tracked.checks, found),
+            None => tracked,
+        }
     }
 }
