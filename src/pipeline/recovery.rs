@@ -601,7 +601,10 @@ impl Pipeline {
             Model {
                 map,
                 seen,
-                include: |i| map.first_seen()[i] < made_before && fusion.predicts(map, i, fused),
+                include: |i| {
+                    map.first_seen().get(i).is_some_and(|&f| f < made_before)
+                        && fusion.predicts(map, i, fused)
+                },
                 far_m: self.config.depth.max_m,
             },
             Trackers {
