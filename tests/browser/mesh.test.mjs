@@ -89,6 +89,7 @@ test('mesh downloads and the mesh view after the bundled sample', { timeout: 400
     assert.equal(pointsJson.meshes[0].primitives[0].mode, 0, 'points');
 
     // The mesh view: meshed when switched on, drawn instead of the splats.
+    await page.waitForFunction(() => document.getElementById('mesh-progress').textContent === '');
     await page.check('#view-mesh');
     const shown = await waitForStatus(page, (s) => s.meshTriangles !== null, { timeoutMs: 120_000 });
     assert.equal(shown.meshTriangles, triangles, 'the view shows the same mesh as the download');
