@@ -10,10 +10,14 @@
 //! from the truth's (what a scan that ends where it began is judged by).
 //!
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
-//! [--swing-frames N] [--noisy] [--lidar] [--depth-only] [--hand SHARE [--hand-from FRAME]] [--no-hand-mask] [--no-dead-reckoning]
+//! [--swing-frames N] [--loop N] [--noisy] [--lidar] [--depth-only] [--hand SHARE [--hand-from FRAME]] [--no-hand-mask] [--no-dead-reckoning]
 //! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--tracker icp|joint|rgb] [--smooth-blur] [--verbose
 //! [--from FRAME]]` (`--verbose`: one line per frame for 50 frames from
-//! `--from`, default 30: verdict, the true turn, the pose's error).
+//! `--from`, default 30: verdict, the true turn, the pose's error, and the
+//! local loop closure's registration where one ran). `--loop N` swings
+//! about the closed loop of `synthetic::loop_pose` (N frames a turn): with
+//! `--frames N+1` the scan ends where it began. The map's surfels are
+//! measured against the true surfaces at the end.
 //! `--depth-only` pushes a constant grey colour image and tracks with ICP,
 //! as a Stray Scanner scan without `rgb/` runs natively: no photometric
 //! term, no feature estimate, so no dead reckoning. `--hand 0.3` holds a
@@ -43,6 +47,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = SwingPath {
         amplitude_deg: arg(&args, "--amplitude", 60.0),
         swing_frames: arg(&args, "--swing-frames", 10.0),
+        loop_frames: args
+            .iter()
+            .position(|a| a == "--loop")
+            .and_then(|i| args.get(i + 1))
+            .and_then(|s| s.parse().ok()),
         ..SwingPath::default()
     };
     let exposure: f64 = arg(&args, "--exposure", 0.5);
@@ -160,14 +169,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let step = synthetic::turn_between_deg(&path.pose(t - 1.0), &path.pose(t));
             let (et, er) = motion_magnitude(&(true_pose.inverse() * report.world_from_camera));
             println!(
-                "{i}: {:?} true turn {step:.1} deg, pose error {:.1} cm {:.1} deg, inliers {}, sparse {:?}, masked {:.1} %",
+                "{i}: {:?} true turn {step:.1} deg, pose error {:.1} cm {:.1} deg, inliers {}, sparse {:?}, masked {:.1} %, closures {} / {} global",
                 report.verdict,
                 100.0 * et,
                 er.to_degrees(),
                 report.inliers,
                 report.checks.sparse.map(|s| s.1),
                 100.0 * report.camera_fixed_share,
+                report.loop_closures,
+                report.global_loop_closures,
             );
+            if let Some(r) = &report.loop_outcome.registration {
+                let (dt, dr) = motion_magnitude(&r.correction);
+                println!(
+                    "    local registration: {:.2} cm {:.2} deg, overlap {}, inliers {}, residual {:.2} -> {:.2} mm, conditioning {:.1e}, free space {:.3}, refused {:?}, bent {}",
+                    100.0 * dt,
+                    dr.to_degrees(),
+                    r.overlap,
+                    r.inliers,
+                    1000.0 * r.start_residual_rms_m,
+                    1000.0 * r.residual_rms_m,
+                    r.conditioning,
+                    r.free_space,
+                    r.rejected,
+                    report.loop_outcome.closed,
+                );
+            }
         }
         verdicts.push(report.verdict);
     }
@@ -208,6 +235,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             );
         }
     }
+    // Surfels off every true surface: what the hand or a wrong placement
+    // left in the map (the map's world is the first frame's camera).
+    let positions = slam.map().positions();
+    let scene_from_map = path.pose(0.0);
+    let beyond_5cm = positions
+        .iter()
+        .filter(|p| {
+            p.is_finite()
+                && scene.distance_to_surface(scene_from_map.transform_point3(p.as_dvec3())) > 0.05
+        })
+        .count();
+    let error = synthetic::map_error(&scene, positions, &scene_from_map);
+    println!(
+        "map: {} surfels, {:.1} % within 1 cm of the true surface, {beyond_5cm} beyond 5 cm",
+        error.surfels,
+        100.0 * error.within_1cm,
+    );
     let line: String = verdicts
         .iter()
         .map(|v| match v {

@@ -19,7 +19,14 @@ use super::trajectory::look_at;
 /// taken as 1.
 #[must_use]
 pub fn loop_pose(index: usize, frames_per_loop: usize) -> DAffine3 {
-    let turn = index as f64 / frames_per_loop.max(1) as f64;
+    loop_pose_at(index as f64, frames_per_loop.max(1) as f64)
+}
+
+/// [`loop_pose`] at time `t` (frames, fractional between frames) of a loop
+/// that takes `frames_per_loop` frames a turn (below 1 taken as 1).
+#[must_use]
+pub fn loop_pose_at(t: f64, frames_per_loop: f64) -> DAffine3 {
+    let turn = t / frames_per_loop.max(1.0);
     let theta = 0.2 + TAU * turn;
     let radius = 0.8;
     let height = 1.45 + 0.05 * libm::sin(2.0 * theta);

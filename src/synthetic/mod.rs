@@ -38,7 +38,7 @@ mod texture;
 mod trajectory;
 
 pub use hand::hold_hand_in_view;
-pub use loop_path::loop_pose;
+pub use loop_path::{loop_pose, loop_pose_at};
 pub use map_error::{map_error, MapError};
 pub use noise::{NoiseModel, StructuredLight};
 pub use render::{

@@ -8,6 +8,7 @@
 
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 
+use super::loop_path::loop_pose_at;
 use super::noise::NoiseModel;
 use super::render::{render_into, RenderedFrame};
 use super::scene::Scene;
@@ -30,6 +31,10 @@ pub struct SwingPath {
     /// How far the camera turns, degrees; successive swings alternate
     /// sides.
     pub amplitude_deg: f64,
+    /// `Some(n)`: the path swung about is the closed loop of
+    /// [`loop_pose_at`], `n` frames a turn (a scan that ends where it
+    /// began); `None`: the open path of [`trajectory_pose_at`].
+    pub loop_frames: Option<f64>,
 }
 
 impl Default for SwingPath {
@@ -43,6 +48,7 @@ impl Default for SwingPath {
             swing_frames: 10.0,
             hold_frames: 15.0,
             amplitude_deg: 60.0,
+            loop_frames: None,
         }
     }
 }
@@ -79,11 +85,15 @@ impl SwingPath {
         sign * self.amplitude_deg.to_radians() * fraction
     }
 
-    /// Pose at time `t` (frames): [`trajectory_pose_at`] turned by
-    /// [`Self::yaw`] about the vertical through the camera.
+    /// Pose at time `t` (frames): the path swung about ([`trajectory_pose_at`]
+    /// or [`loop_pose_at`]) turned by [`Self::yaw`] about the vertical
+    /// through the camera.
     #[must_use]
     pub fn pose(&self, t: f64) -> DAffine3 {
-        let base = trajectory_pose_at(t);
+        let base = match self.loop_frames {
+            Some(n) => loop_pose_at(t, n),
+            None => trajectory_pose_at(t),
+        };
         let turn = DMat3::from_quat(quat_from_axis_angle(DVec3::Y, self.yaw(t)));
         DAffine3 {
             matrix3: turn * base.matrix3,
@@ -165,6 +175,27 @@ pub fn turn_between_deg(a: &DAffine3, b: &DAffine3) -> f64 {
 mod tests {
     use super::*;
     use crate::synthetic::test_support::small;
+
+    #[test]
+    fn swings_about_the_closed_loop_end_where_they_began() {
+        let path = SwingPath {
+            loop_frames: Some(600.0),
+            ..SwingPath::default()
+        };
+        // Frame 600 is a turn later and between swings (560 frames after
+        // the first, a whole number of periods).
+        let (dt, dr) = crate::se3::motion_magnitude(&(path.pose(0.0).inverse() * path.pose(600.0)));
+        assert!(dt < 1e-9 && dr < 1e-9, "{dt} m, {dr} rad");
+        let (dt, dr) = crate::se3::motion_magnitude(
+            &(super::super::loop_pose(50, 600).inverse() * path.pose(50.0)),
+        );
+        assert!(dt < 1e-12, "{dt} m: the loop's own position");
+        assert!(
+            (dr.to_degrees() - 60.0).abs() < 1e-6,
+            "{} deg: turned aside",
+            dr.to_degrees()
+        );
+    }
 
     #[test]
     fn swings_turn_aside_and_back_at_the_stated_speed() {
