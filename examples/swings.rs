@@ -10,13 +10,14 @@
 //! from the truth's (what a scan that ends where it began is judged by).
 //!
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
-//! [--swing-frames N] [--loop N] [--noisy] [--lidar] [--depth-only] [--hand SHARE [--hand-from FRAME]] [--no-hand-mask] [--no-dead-reckoning]
+//! [--swing-frames N] [--loop N] [--no-local-closure] [--noisy] [--lidar] [--depth-only] [--hand SHARE [--hand-from FRAME]] [--no-hand-mask] [--no-dead-reckoning]
 //! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--tracker icp|joint|rgb] [--smooth-blur] [--verbose
 //! [--from FRAME]]` (`--verbose`: one line per frame for 50 frames from
 //! `--from`, default 30: verdict, the true turn, the pose's error, and the
 //! local loop closure's registration where one ran). `--loop N` swings
 //! about the closed loop of `synthetic::loop_pose` (N frames a turn): with
-//! `--frames N+1` the scan ends where it began. The map's surfels are
+//! `--frames N+1` the scan ends where it began (`--no-local-closure`: no
+//! model-to-model closure; the global one still runs). The map's surfels are
 //! measured against the true surfaces at the end.
 //! `--depth-only` pushes a constant grey colour image and tracks with ICP,
 //! as a Stray Scanner scan without `rgb/` runs natively: no photometric
@@ -85,6 +86,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         config.tracker.verify.dead_reckoning_min_inliers,
     );
     config.tracker.verify.dead_reckoning = !args.iter().any(|a| a == "--no-dead-reckoning");
+    if args.iter().any(|a| a == "--no-local-closure") {
+        config.loop_closure.every_frames = u32::MAX;
+    }
     if args.iter().any(|a| a == "--no-hand-mask") {
         config.preprocess.camera_fixed_frames = 0;
     }
