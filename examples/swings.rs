@@ -186,13 +186,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if let Some(r) = &report.loop_outcome.registration {
                 let (dt, dr) = motion_magnitude(&r.correction);
                 println!(
-                    "    local registration: {:.2} cm {:.2} deg, overlap {}, inliers {}, residual {:.2} -> {:.2} mm, conditioning {:.1e}, free space {:.3}, refused {:?}, bent {}",
+                    "    local registration: {:.2} cm {:.2} deg, overlap {}, inliers {}, residual {:.2} -> {:.2} mm, held {}, conditioning {:.1e}, free space {:.3}, refused {:?}, bent {}",
                     100.0 * dt,
                     dr.to_degrees(),
                     r.overlap,
                     r.inliers,
                     1000.0 * r.start_residual_rms_m,
                     1000.0 * r.residual_rms_m,
+                    r.held,
                     r.conditioning,
                     r.free_space,
                     r.rejected,

@@ -20,6 +20,7 @@ use crate::se3::RigidF32;
 use crate::track::icp::icp_step;
 use crate::track::model_points::ModelPoints;
 use crate::track::verify::{free_space_violation, VerifyConfig};
+use crate::track::FreeDirections;
 use glam::{DAffine3, Vec3};
 
 use super::LoopClosureConfig;
@@ -77,7 +78,12 @@ pub struct Registration {
     /// metres: a correction that barely lowers it is not measured by the
     /// overlap (it slides along a weakly constrained direction).
     pub start_residual_rms_m: f64,
-    /// Eigenvalue ratio of the scaled 6x6 system (0 = singular).
+    /// Directions of motion the inactive model's geometry leaves free
+    /// (information per point below `hold_below_eigenvalue` above its
+    /// normals' noise floor): the correction has no component along them.
+    pub held: usize,
+    /// Eigenvalue ratio of the scaled 6x6 system, the held directions
+    /// counted as ordinary ones (0 = singular).
     pub conditioning: f64,
     /// Free-space violation fraction, the larger of the two directions
     /// (active points against the inactive model and the reverse).
@@ -98,6 +104,7 @@ impl Registration {
             inlier_ratio: 0.0,
             residual_rms_m: 0.0,
             start_residual_rms_m: 0.0,
+            held: 0,
             conditioning: 0.0,
             free_space: 0.0,
             start_free_space: 0.0,
@@ -140,6 +147,9 @@ pub struct ModelRegistration {
     active_points: Vec<Vec3>,
     /// The active prediction's pixels holding a surfel: the ICP sources.
     sources: ModelPoints,
+    /// Squared normal differences the free directions' noise floor is the
+    /// median of.
+    differences: Vec<f64>,
 }
 
 /// Brings a prediction's world-frame maps into the camera frame of the pose
@@ -189,11 +199,17 @@ impl ModelRegistration {
         let view = inactive.world_from_camera;
         to_camera_frame_into(inactive, &mut self.target);
         self.sources.gather_from(active);
-        let (camera_from_world, start_residual_rms_m) = self.align(view.inverse(), config);
+        let free = FreeDirections::of_model(
+            &self.target,
+            |i| active.normals.get(i).is_some_and(|n| *n != Vec3::ZERO),
+            config.hold_below_eigenvalue,
+            &mut self.differences,
+        );
+        let (camera_from_world, start_residual_rms_m) = self.align(view.inverse(), &free, config);
         if !(view * camera_from_world).is_finite() {
             return Registration::rejected(Rejection::Degenerate, overlap);
         }
-        let mut result = self.evaluate((view, &camera_from_world), config, overlap);
+        let mut result = self.evaluate((view, &camera_from_world), &free, config, overlap);
         result.start_residual_rms_m = start_residual_rms_m;
         result.rejected = judge(&result, config, n);
         if result.rejected.is_none() {
@@ -210,11 +226,13 @@ impl ModelRegistration {
 
     /// Gauss-Newton point-to-plane ICP of `active` onto the target, from
     /// `camera_from_world`, coarse to fine on the source grid (the target
-    /// stays full resolution). Returns the estimate and the RMS residual
-    /// before the first step (metres).
+    /// stays full resolution), with no step along the `free` directions.
+    /// Returns the estimate and the RMS residual before the first step
+    /// (metres).
     fn align(
         &self,
         mut camera_from_world: DAffine3,
+        free: &FreeDirections,
         config: &LoopClosureConfig,
     ) -> (DAffine3, f64) {
         let start = icp_step(
@@ -234,7 +252,7 @@ impl ModelRegistration {
                 if step.system.count < 6 {
                     break;
                 }
-                let Some(xi) = step.system.solve(0.0) else {
+                let Some(xi) = free.held(&step.system).solve(0.0) else {
                     break;
                 };
                 camera_from_world = se3::exp(&xi) * camera_from_world;
@@ -252,6 +270,7 @@ impl ModelRegistration {
     fn evaluate(
         &self,
         (view, camera_from_world): (DAffine3, &DAffine3),
+        free: &FreeDirections,
         config: &LoopClosureConfig,
         overlap: usize,
     ) -> Registration {
@@ -266,8 +285,9 @@ impl ModelRegistration {
             inlier_ratio: (inliers as f64 / overlap as f64).min(1.0),
             residual_rms_m: (system.cost / inliers.max(1) as f64).sqrt(),
             start_residual_rms_m: 0.0,
+            held: free.count(),
             conditioning: if inliers >= 6 {
-                system.conditioning()
+                free.pinned(system, 1.0).conditioning()
             } else {
                 0.0
             },

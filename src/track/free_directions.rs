@@ -250,6 +250,69 @@ impl FreeDirections {
         self
     }
 
+    /// The directions whose information per point, above the noise floor
+    /// of its normals, is below `threshold`, for the organised points of
+    /// `level` (camera frame, metres) at the pixels where `counted`: the
+    /// geometry of a model prediction as the model-to-model registration
+    /// sees it, every [`CONFIRM_STEP`]-th pixel each way. Fused normals
+    /// scatter less than a frame's but still pose as information; the
+    /// floor is the full-resolution one of [`Self::confirmed`]. None when
+    /// `threshold` is 0 or fewer than 6 points count.
+    #[must_use]
+    pub fn of_model(
+        level: &PyramidLevel,
+        counted: impl Fn(usize) -> bool,
+        threshold: f64,
+        differences: &mut Vec<f64>,
+    ) -> Self {
+        let Some(k) = level.intrinsics else {
+            return Self::default();
+        };
+        let n = k.pixel_count();
+        if threshold <= 0.0 || level.vertices.len() != n || level.normals.len() != n {
+            return Self::default();
+        }
+        let mut info = nalgebra::Matrix6::<f64>::zeros();
+        let mut points = 0.0f64;
+        for row in (0..k.height).step_by(CONFIRM_STEP) {
+            for col in (0..k.width).step_by(CONFIRM_STEP) {
+                let i = row * k.width + col;
+                let (q, n) = (level.vertices[i], level.normals[i]);
+                if q.z <= 0.0 || n == Vec3::ZERO || !counted(i) {
+                    continue;
+                }
+                let c = q.as_dvec3().cross(n.as_dvec3()) * ROTATION_ARM_M.recip();
+                let n = n.as_dvec3();
+                let row = nalgebra::Vector6::new(c.x, c.y, c.z, n.x, n.y, n.z);
+                info += row * row.transpose();
+                points += 1.0;
+            }
+        }
+        if points < 6.0 || !info.iter().all(|v| v.is_finite()) {
+            return Self::default();
+        }
+        let floor = noise_floor_at_full_resolution(
+            level,
+            &k,
+            |row, col| counted(row * k.width + col),
+            differences,
+        );
+        let eigen = nalgebra::SymmetricEigen::new(info / points);
+        let mut free = Self {
+            smallest_eigenvalue: (eigen.eigenvalues.min() - floor).max(0.0),
+            ..Self::default()
+        };
+        for (i, value) in eigen.eigenvalues.iter().enumerate() {
+            if *value - floor < threshold {
+                let v = eigen.eigenvectors.column(i);
+                let s = ROTATION_ARM_M;
+                free.directions[free.count] = [v[0] * s, v[1] * s, v[2] * s, v[3], v[4], v[5]];
+                free.count += 1;
+            }
+        }
+        free
+    }
+
     /// The motions `system` pins poorly: the eigenvectors `v` of its
     /// unit-diagonal scaling (as [`NormalEquations::conditioning`] takes
     /// it) whose eigenvalue is below `ratio` times the largest, as the
