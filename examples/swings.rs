@@ -12,8 +12,8 @@
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
 //! [--swing-frames N] [--loop N] [--no-local-closure] [--noisy] [--lidar] [--depth-only] [--hand SHARE [--hand-from FRAME]] [--no-hand-mask] [--no-dead-reckoning]
 //! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--tracker icp|joint|rgb] [--smooth-blur] [--verbose
-//! [--from FRAME]]` (`--verbose`: one line per frame for 50 frames from
-//! `--from`, default 30: verdict, the true turn, the pose's error, and the
+//! [--from FRAME] [--shown N]]` (`--verbose`: one line per frame for
+//! `--shown` frames, default 50, from `--from`, default 30: verdict, the true turn, the pose's error, and the
 //! local loop closure's registration where one ran). `--loop N` swings
 //! about the closed loop of `synthetic::loop_pose` (N frames a turn): with
 //! `--frames N+1` the scan ends where it began (`--no-local-closure`: no
@@ -168,7 +168,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             last_fused = Some((i, report.world_from_camera));
         }
         if args.iter().any(|a| a == "--verbose")
-            && (arg(&args, "--from", 30)..arg(&args, "--from", 30) + 50).contains(&i)
+            && (arg(&args, "--from", 30)..arg(&args, "--from", 30) + arg(&args, "--shown", 50))
+                .contains(&i)
         {
             let step = synthetic::turn_between_deg(&path.pose(t - 1.0), &path.pose(t));
             let (et, er) = motion_magnitude(&(true_pose.inverse() * report.world_from_camera));

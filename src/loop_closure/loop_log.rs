@@ -12,7 +12,7 @@ use super::global::GlobalMiss;
 
 /// The CSV header of [`loop_log_row`], without a line end.
 pub const LOOP_LOG_HEADER: &str = "frame,decision,\
-local_overlap,local_inliers,local_residual_mm,local_start_residual_mm,local_conditioning,\
+local_overlap,local_inliers,local_residual_mm,local_start_residual_mm,local_conditioning,local_held,\
 local_free_space,local_start_free_space,local_correction_cm,local_correction_deg,local_refused,\
 global_candidates,global_keyframe,global_dissimilarity,global_correction_cm,\
 global_correction_deg,global_conditioning,global_free_space,global_photometric,global_refused,\
@@ -139,6 +139,7 @@ pub fn loop_log_row(frame: u32, outcome: &LoopOutcome, truth: Option<(f64, f64)>
     field(r.map(|r| format!("{:.3}", r.residual_rms_m * 1000.0)));
     field(r.map(|r| format!("{:.3}", r.start_residual_rms_m * 1000.0)));
     field(r.map(|r| format!("{:.2e}", r.conditioning)));
+    field(r.map(|r| r.held.to_string()));
     field(r.map(|r| format!("{:.4}", r.free_space)));
     field(r.map(|r| format!("{:.4}", r.start_free_space)));
     field(r.map(|r| format!("{:.3}", r.magnitude().0 * 100.0)));
