@@ -14,7 +14,7 @@
 //! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--tracker icp|joint|rgb] [--smooth-blur] [--verbose
 //! [--from FRAME] [--shown N]]` (`--verbose`: one line per frame for
 //! `--shown` frames, default 50, from `--from`, default 30: verdict, the true turn, the pose's error, and the
-//! local loop closure's registration where one ran). `--loop N` swings
+//! local loop closure's registration where one ran, and a global match). `--loop N` swings
 //! about the closed loop of `synthetic::loop_pose` (N frames a turn): with
 //! `--frames N+1` the scan ends where it began (`--no-local-closure`: no
 //! model-to-model closure; the global one still runs). The map's surfels are
@@ -199,6 +199,30 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     r.free_space,
                     r.rejected,
                     report.loop_outcome.closed,
+                );
+            }
+            if let Some(g) = &report.loop_outcome.global {
+                let off = |pose: &glam::DAffine3| {
+                    let (dt, dr) = motion_magnitude(&(true_pose.inverse() * *pose));
+                    let v = (true_pose.inverse() * *pose).translation * 100.0;
+                    format!(
+                        "{:.1} cm {:.1} deg ({:.1} {:.1} {:.1})",
+                        100.0 * dt,
+                        dr.to_degrees(),
+                        v.x,
+                        v.y,
+                        v.z
+                    )
+                };
+                println!(
+                    "    global match on keyframe {}: {:.2} cm {:.2} deg, tracked {} off, registered {} off, closed {}, pose only {}",
+                    g.keyframe_frame,
+                    100.0 * g.correction_m,
+                    g.correction_deg,
+                    off(&g.tracked),
+                    off(&g.registered),
+                    g.closed,
+                    g.pose_only,
                 );
             }
         }
