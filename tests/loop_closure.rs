@@ -9,6 +9,7 @@ use common::synthetic_config;
 use glam::DAffine3;
 use surfel_slam::eval::ate;
 use surfel_slam::fusion::{DepthTiles, Measured, Prediction, SurfelMap};
+use surfel_slam::loop_closure::global::measured_part;
 use surfel_slam::loop_closure::local::{ModelRegistration, Rejection};
 use surfel_slam::loop_closure::LoopClosureConfig;
 use surfel_slam::preprocess::FramePyramid;
@@ -172,12 +173,10 @@ fn model_to_model_registration_measures_a_known_drift() {
     }
 }
 
-#[test]
-fn a_floor_and_a_wall_are_registered_across_their_join_and_held_along_it() {
-    // A wall meeting a floor, nothing else in range: the join (world x)
-    // leaves one translation free. Under Kinect-like depth noise the fused
-    // normals scatter and pose as information along it; registering the
-    // same two views with no drift along the join must not slide there.
+/// A wall (z = 2 m) meeting the floor, the side walls and the ceiling out
+/// of view, and a camera 1.5 m above the floor looking at the join (world
+/// x, the camera's x axis).
+fn floor_and_wall() -> (Scene, DAffine3) {
     let scene = Scene {
         boxes: vec![SceneBox::room(
             glam::DVec3::new(-30.0, -3.0, -30.0),
@@ -185,12 +184,68 @@ fn a_floor_and_a_wall_are_registered_across_their_join_and_held_along_it() {
             0,
         )],
     };
-    let k = synthetic::default_intrinsics().half();
-    let verify = VerifyConfig::default();
     let pose = synthetic::look_at(
         glam::DVec3::new(0.0, -1.5, 0.0),
         glam::DVec3::new(0.0, -0.2, 2.0),
     );
+    (scene, pose)
+}
+
+#[test]
+fn a_global_match_keeps_only_what_the_old_view_measures() {
+    // The old model shows a floor and a wall: a registration's motion along
+    // their join is where its search ended, not a measurement.
+    let (scene, pose) = floor_and_wall();
+    let k = synthetic::default_intrinsics().half();
+    let view = view_points_of(&scene, &k, &pose, &NoiseModel::kinect(), 1);
+    let mut map = SurfelMap::default();
+    add_view(&mut map, &view, &pose, 0);
+    let (old_view, _) = predictions(&map, 0, &k, &pose, &view.0);
+    let tracked = pose;
+    let registered = tracked * exp(&[0.0, 0.0, 0.0, 0.04, 0.01, -0.02]);
+    let threshold =
+        surfel_slam::loop_closure::global::GlobalConfig::default().hold_below_eigenvalue;
+    let kept = measured_part(&old_view, &tracked, &registered, threshold);
+    let motion = tracked.inverse() * kept;
+    let t = motion.translation;
+    println!(
+        "kept {:.2} {:.2} {:.2} cm",
+        100.0 * t.x,
+        100.0 * t.y,
+        100.0 * t.z
+    );
+    assert!(
+        t.x.abs() < 0.002,
+        "the slide along the join was kept: {t:?}"
+    );
+    assert!(
+        (t.y - 0.01).abs() < 0.002 && (t.z + 0.02).abs() < 0.002,
+        "the measured part was lost: {t:?}"
+    );
+    // A view that pins every direction keeps the whole registration.
+    let room_view = view_points(&k, &loop_pose(0, 240));
+    let mut room = SurfelMap::default();
+    add_view(&mut room, &room_view, &loop_pose(0, 240), 0);
+    let (room_old, _) = predictions(&room, 0, &k, &loop_pose(0, 240), &room_view.0);
+    let tracked = loop_pose(0, 240);
+    let registered = tracked * exp(&[0.0, 0.0, 0.0, 0.04, 0.01, -0.02]);
+    let kept = measured_part(&room_old, &tracked, &registered, threshold);
+    let (dt, _) = motion_magnitude(&(registered.inverse() * kept));
+    assert!(
+        dt < 1e-9,
+        "the room's view measures every direction: {dt} m taken out"
+    );
+}
+
+#[test]
+fn a_floor_and_a_wall_are_registered_across_their_join_and_held_along_it() {
+    // A wall meeting a floor, nothing else in range: the join (world x)
+    // leaves one translation free. Under Kinect-like depth noise the fused
+    // normals scatter and pose as information along it; registering the
+    // same two views with no drift along the join must not slide there.
+    let (scene, pose) = floor_and_wall();
+    let k = synthetic::default_intrinsics().half();
+    let verify = VerifyConfig::default();
     let noise = NoiseModel::kinect();
     let (old_view, new_view) = (
         view_points_of(&scene, &k, &pose, &noise, 1),

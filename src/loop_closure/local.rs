@@ -155,7 +155,18 @@ pub struct ModelRegistration {
 /// Brings a prediction's world-frame maps into the camera frame of the pose
 /// it was rendered from, as a pyramid level (`ZERO` where no surfel).
 fn to_camera_frame_into(prediction: &Prediction, out: &mut PyramidLevel) {
-    let camera_from_world = RigidF32::from_affine(&prediction.world_from_camera.inverse());
+    to_frame_of_into(prediction, &prediction.world_from_camera, out);
+}
+
+/// Brings a prediction's world-frame maps into the camera frame of
+/// `world_from_camera` (metres), keeping its pixel grid, as a pyramid level
+/// (`ZERO` where no surfel).
+pub fn to_frame_of_into(
+    prediction: &Prediction,
+    world_from_camera: &DAffine3,
+    out: &mut PyramidLevel,
+) {
+    let camera_from_world = RigidF32::from_affine(&world_from_camera.inverse());
     let n = prediction.vertices.len();
     out.intrinsics = prediction.intrinsics;
     out.vertices.resize(n, Vec3::ZERO);

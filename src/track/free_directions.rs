@@ -310,6 +310,7 @@ impl FreeDirections {
                 free.count += 1;
             }
         }
+        free.orthonormalise();
         free
     }
 
@@ -374,6 +375,20 @@ impl FreeDirections {
             })
             .sum::<f64>()
             .sqrt()
+    }
+
+    /// `twist` without its part along the held directions (metres, with
+    /// rotations in radians at 1 m, as [`Self::length_along`] measures it).
+    #[must_use]
+    pub fn removed_from(&self, twist: &[f64; 6]) -> [f64; 6] {
+        let mut kept = *twist;
+        for u in &self.directions[..self.count] {
+            let along: f64 = u.iter().zip(&kept).map(|(a, b)| a * b).sum();
+            for (x, y) in kept.iter_mut().zip(u) {
+                *x -= along * y;
+            }
+        }
+        kept
     }
 
     /// Gram-Schmidt over the held covectors; a dependent one is dropped.
