@@ -156,7 +156,13 @@ impl FreeDirections {
             return Self::default();
         }
         let floor = noise_floor_of_grid(grid, width);
-        let eigen = nalgebra::SymmetricEigen::new(info / points);
+        Self::below(&(info / points), floor, threshold)
+    }
+
+    /// The eigenvectors of `information` (per point) whose eigenvalue above
+    /// `floor` is below `threshold`, as held covectors.
+    fn below(information: &nalgebra::Matrix6<f64>, floor: f64, threshold: f64) -> Self {
+        let eigen = nalgebra::SymmetricEigen::new(*information);
         let mut free = Self {
             smallest_eigenvalue: (eigen.eigenvalues.min() - floor).max(0.0),
             ..Self::default()
@@ -297,19 +303,7 @@ impl FreeDirections {
             |row, col| counted(row * k.width + col),
             differences,
         );
-        let eigen = nalgebra::SymmetricEigen::new(info / points);
-        let mut free = Self {
-            smallest_eigenvalue: (eigen.eigenvalues.min() - floor).max(0.0),
-            ..Self::default()
-        };
-        for (i, value) in eigen.eigenvalues.iter().enumerate() {
-            if *value - floor < threshold {
-                let v = eigen.eigenvectors.column(i);
-                let s = ROTATION_ARM_M;
-                free.directions[free.count] = [v[0] * s, v[1] * s, v[2] * s, v[3], v[4], v[5]];
-                free.count += 1;
-            }
-        }
+        let mut free = Self::below(&(info / points), floor, threshold);
         free.orthonormalise();
         free
     }
