@@ -174,16 +174,44 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let step = synthetic::turn_between_deg(&path.pose(t - 1.0), &path.pose(t));
             let (et, er) = motion_magnitude(&(true_pose.inverse() * report.world_from_camera));
             println!(
-                "{i}: {:?} true turn {step:.1} deg, pose error {:.1} cm {:.1} deg, inliers {}, sparse {:?}, masked {:.1} %, closures {} / {} global",
+                "{i}: {:?} true turn {step:.1} deg, pose error {:.1} cm {:.1} deg, inliers {}, conditioning {:.1e}, sparse {:?}, masked {:.1} %, closures {} / {} global",
                 report.verdict,
                 100.0 * et,
                 er.to_degrees(),
                 report.inliers,
+                report.conditioning,
                 report.checks.sparse.map(|s| s.1),
                 100.0 * report.camera_fixed_share,
                 report.loop_closures,
                 report.global_loop_closures,
             );
+            let off = |pose: &glam::DAffine3| {
+                let (dt, dr) = motion_magnitude(&(true_pose.inverse() * *pose));
+                let v = (true_pose.inverse() * *pose).translation * 100.0;
+                format!(
+                    "{:.1} cm {:.1} deg ({:.1} {:.1} {:.1})",
+                    100.0 * dt,
+                    dr.to_degrees(),
+                    v.x,
+                    v.y,
+                    v.z
+                )
+            };
+            let c = &report.checks;
+            if report.verdict != Verdict::Tracked || c.sparse_ran {
+                println!(
+                    "    checks: first dense {} off, sparse {} off (rms {:.1} mm), from sparse {}, sparse only {}, relocalised from {:?}, dead reckoned {}, free space {:.3} / {:.3}",
+                    c.first_dense.as_ref().map_or("-".into(), off),
+                    c.sparse.as_ref().map_or("-".into(), |s| off(&s.0)),
+                    1000.0 * c.sparse_rms_m,
+                    c.from_sparse,
+                    c.sparse_only,
+                    c.relocalised_from,
+                    c.dead_reckoned,
+                    c.free_space_first,
+                    c.free_space_final,
+                );
+            }
             if let Some(r) = &report.loop_outcome.registration {
                 let (dt, dr) = motion_magnitude(&r.correction);
                 println!(
@@ -201,19 +229,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     report.loop_outcome.closed,
                 );
             }
+            if report.loop_outcome.global_looked && report.loop_outcome.global.is_none() {
+                println!(
+                    "    global look: {} candidates, found nothing ({:?})",
+                    report.loop_outcome.global_candidates, report.loop_outcome.global_miss
+                );
+            }
             if let Some(g) = &report.loop_outcome.global {
-                let off = |pose: &glam::DAffine3| {
-                    let (dt, dr) = motion_magnitude(&(true_pose.inverse() * *pose));
-                    let v = (true_pose.inverse() * *pose).translation * 100.0;
-                    format!(
-                        "{:.1} cm {:.1} deg ({:.1} {:.1} {:.1})",
-                        100.0 * dt,
-                        dr.to_degrees(),
-                        v.x,
-                        v.y,
-                        v.z
-                    )
-                };
                 println!(
                     "    global match on keyframe {}: {:.2} cm {:.2} deg, tracked {} off, registered {} off, closed {}, pose only {}",
                     g.keyframe_frame,

@@ -79,11 +79,14 @@ impl Run {
             let (registered, tracked) = (off(&g.registered), off(&g.tracked));
             println!(
                 "  global match at frame {i} with keyframe {}: correction {:.2} cm {:.2} deg, \
-                 closed {}, {:.2} ms; tracked {:.2} cm {:.2} deg, registered {:.2} cm {:.2} deg off the truth",
+                 closed {} (pose only {}, {} old surfels active again), {:.2} ms; tracked {:.2} cm {:.2} deg, \
+                 registered {:.2} cm {:.2} deg off the truth",
                 g.keyframe_frame,
                 g.correction_m * 100.0,
                 g.correction_deg,
                 g.closed,
+                g.pose_only,
+                self.reports[i].loop_outcome.reactivated,
                 self.reports[i].timings.loop_ms,
                 tracked.0 * 100.0,
                 tracked.1,
@@ -97,6 +100,12 @@ impl Run {
             assert!(
                 registered.0 < tracked.0,
                 "frame {i}: the match moved away from the truth"
+            );
+            // The next frames are tracked against the old surfels the
+            // frame sees, whether the map was bent or the pose alone moved.
+            assert!(
+                !g.closed || self.reports[i].loop_outcome.reactivated > 0,
+                "frame {i}: a closure left the old surfels inactive"
             );
         }
     }

@@ -12,6 +12,9 @@
 //! where the tracked pose put them to where the registered pose puts them)
 //! and pins (the inactive surfels the keyframe's view shows stay), bent
 //! with the same graph: the old map stays, the drifted recent part moves.
+//! A match that only undoes the last frames' slide moves the pose alone;
+//! either way the old surfels the frame sees become active again, so that
+//! the next frames are tracked against them.
 
 use crate::camera::Intrinsics;
 use crate::fusion::{FusionConfig, Measured, Prediction, SurfelMap};
@@ -381,7 +384,10 @@ impl LoopCloser {
         let registered = found.registration.world_from_camera;
         let slid = slide_undone(trajectory, (&found.tracked, &registered), &config);
         if slid {
-            // The map did not drift: only this frame is put back.
+            // The map did not drift: only this frame is put back, and the
+            // old surfels it sees there become active again, so that the
+            // next frames are tracked against them and not against the
+            // little the active model shows there (which slid).
             *pose = registered;
             self.graph = None;
             outcome.closed = true;
@@ -389,6 +395,11 @@ impl LoopCloser {
             self.closures += 1;
             self.global_closures += 1;
             self.last_global = Some(now);
+            self.collect_seen(map, view, look.pyramid, pose, frame.verify);
+            for &i in &self.matched {
+                map.touch(i, now);
+            }
+            outcome.reactivated = self.matched.len();
             return;
         }
         let inactive_before = frame.active_from;
