@@ -24,6 +24,7 @@ pub mod global;
 pub mod local;
 pub mod loop_log;
 pub mod relocalise;
+mod slide;
 
 pub use closer::{GlobalLook, LoopCloser, LoopFrame, LoopOutcome, SegmentJoin};
 
