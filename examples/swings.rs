@@ -10,7 +10,7 @@
 //! from the truth's (what a scan that ends where it began is judged by).
 //!
 //! `cargo run --release --example swings [-- --frames N] [--amplitude DEG]
-//! [--swing-frames N] [--loop N] [--no-local-closure] [--noisy] [--lidar] [--depth-only] [--hand SHARE [--hand-from FRAME]] [--no-hand-mask] [--no-dead-reckoning]
+//! [--swing-frames N] [--loop N] [--no-local-closure] [--noisy] [--lidar] [--depth-only] [--hand SHARE [--hand-from FRAME]] [--no-hand-mask] [--no-dead-reckoning] [--no-finish]
 //! [--dead-reckoning-min N] [--exposure F] [--preset NAME] [--tracker icp|joint|rgb] [--smooth-blur] [--verbose
 //! [--from FRAME] [--shown N]]` (`--verbose`: one line per frame for
 //! `--shown` frames, default 50, from `--from`, default 30: verdict, the true turn, the pose's error, and the
@@ -249,6 +249,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
         verdicts.push(report.verdict);
+    }
+    // The recording ended: the last frame looked up as the CLI does.
+    if !args.iter().any(|a| a == "--no-finish") {
+        let before = slam.trajectory().last().map(|p| p.1);
+        let outcome = slam.finish();
+        let after = slam.trajectory().last().map(|p| p.1);
+        if let (true, Some(before), Some(after), Some(truth)) =
+            (outcome.global_looked, before, after, truth.last())
+        {
+            // The estimate's world is the first frame's camera, as the truth's.
+            let off = |pose: glam::DAffine3| {
+                let (dt, dr) = motion_magnitude(&(truth.1.inverse() * pose));
+                format!("{:.2} cm {:.2} deg", 100.0 * dt, dr.to_degrees())
+            };
+            println!(
+                "finish: looked the last frame up, {} candidates, closed {}, {:?}, last frame {} -> {} off",
+                outcome.global_candidates,
+                outcome.closed,
+                outcome.global_miss,
+                off(before),
+                off(after)
+            );
+        }
     }
     let lost: Vec<bool> = verdicts
         .iter()

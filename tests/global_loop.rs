@@ -265,6 +265,54 @@ fn a_reset_after_a_global_closure_starts_clean() {
     assert!(again.slam.map().all_finite());
 }
 
+/// A recording that ends where it began, a few frames after the last
+/// scheduled look: `finish` looks its last frame up and closes the loop
+/// there; a second call does nothing, and frames pushed after it are
+/// tracked from the corrected pose.
+#[test]
+fn the_last_frame_of_a_recording_is_looked_up_whatever_the_schedule() {
+    let mut config = loop_config(true);
+    // No scheduled look reaches the return (frame 240).
+    config.loop_closure.global.every_frames = 1000;
+    let mut fresh = Pipeline::new(config.clone()).expect("config");
+    assert!(!fresh.finish().global_looked, "looked with no frame");
+    let mut run = run(&config, 241, drifting_shot(&config));
+    assert_eq!(run.global().count(), 0, "a scheduled look ran");
+    let before = end_error(&run);
+    let outcome = run.slam.finish();
+    let after = end_error(&run);
+    println!(
+        "pose 240 vs 0 {:.2} -> {:.2} cm, ATE {:.2} cm, match (keyframe, m, pose only) {:?}",
+        before * 100.0,
+        after * 100.0,
+        run.ate_m() * 100.0,
+        outcome
+            .global
+            .map(|g| (g.keyframe_frame, g.correction_m, g.pose_only))
+    );
+    assert!(before > 0.15, "no drift to close ({before} m)");
+    assert!(outcome.global_looked && outcome.closed, "{outcome:?}");
+    assert!(after <= 0.2 * before, "{after} m after, {before} m before");
+    assert_eq!(run.slam.global_loop_closures(), 1);
+    assert!(
+        !run.slam.finish().global_looked,
+        "the last frame looked up twice"
+    );
+    assert!(run.slam.map().all_finite());
+    // The recording goes on after all.
+    let (shot, _) = drifting_shot(&config)(241);
+    let frame = synthetic::render(&shot.scene, &shot.k, &shot.pose, &NoiseModel::none(), 241)
+        .to_frame(&config.depth)
+        .expect("frame");
+    let report = run.slam.push_frame(&frame, 241.0).expect("push");
+    let truth = loop_pose(0, 240).inverse() * shot.pose;
+    let (dt, _) = motion_magnitude(&(truth.inverse() * report.world_from_camera));
+    assert!(report.verdict.is_fused(), "{:?}", report.verdict);
+    assert!(dt < 0.02, "frame 241 {dt} m off after the finish");
+    run.slam.reset();
+    assert!(!run.slam.finish().global_looked, "looked after a reset");
+}
+
 /// The room with a row of identical boxes (one material) 0.7 m apart along
 /// the +z wall: each looks like its neighbours, less than the largest
 /// correction (1 m) away.

@@ -116,6 +116,8 @@ struct Coverage {
     budget_full: usize,
     exports: usize,
     sessions: usize,
+    /// Calls of `finish` (the recording ended).
+    finishes: usize,
     /// Times localise mode was started, and frames pushed in it.
     localise_starts: usize,
     localised: usize,
@@ -382,6 +384,27 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
             );
             assert_eq!(ply.len(), end + live * 35, "{}", at("PLY size"));
             cov.exports += 1;
+        } else if roll == 97 {
+            // The recording "ends" here; more frames may follow.
+            let frames = slam.frames();
+            let outcome = slam.finish();
+            assert!(
+                outcome.global_looked || !outcome.closed,
+                "{}",
+                at("finish closed without looking")
+            );
+            assert!(
+                localising.is_none() || !outcome.global_looked,
+                "{}",
+                at("finish looked while localising")
+            );
+            assert!(
+                !slam.finish().global_looked,
+                "{}",
+                at("the last frame looked up twice")
+            );
+            assert_eq!(slam.frames(), frames, "{}", at("finish pushed a frame"));
+            cov.finishes += 1;
         } else if roll < 98 {
             let r = slam.take_changed_range();
             assert!(
@@ -451,6 +474,7 @@ fn add(total: &mut Coverage, c: Coverage) {
     total.budget_full += c.budget_full;
     total.exports += c.exports;
     total.sessions += c.sessions;
+    total.finishes += c.finishes;
     total.localise_starts += c.localise_starts;
     total.localised += c.localised;
     total.noisy_frames += c.noisy_frames;
@@ -488,7 +512,10 @@ fn any_sequence_of_calls_keeps_the_pipeline_consistent_on_synthetic_frames() {
         total.refused > 0 && total.config_changes > 0 && total.exports > 0,
         "{total:?}"
     );
-    assert!(total.sessions > 0 && total.restarts > 0, "{total:?}");
+    assert!(
+        total.sessions > 0 && total.restarts > 0 && total.finishes > 0,
+        "{total:?}"
+    );
     assert!(
         total.localise_starts > 0 && total.localised > 0,
         "{total:?}"

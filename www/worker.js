@@ -398,6 +398,20 @@ function continueSession(newConfig) {
 
 let lastFrameEnd = null; // performance.now() when the last frame was posted (null: not playing)
 
+/**
+ * After the sequence's last frame: the recording ended, so that frame is
+ * looked up among the old keyframes too, whatever the global check's
+ * schedule (Slam.finish); what it did shows as that frame's loop result.
+ */
+function finishRecording(r) {
+  const f = toPlain(slam.finish());
+  if (!f.looked) return;
+  r.loopClosures = f.loopClosures;
+  r.globalLoopClosures = f.globalLoopClosures;
+  r.loopClosed = r.loopClosed || f.loopClosed;
+  r.loopDecision = [r.loopDecision, f.loopDecision].filter(Boolean).join('; ');
+}
+
 async function processNext() {
   if (!seq || !slam || next >= seq.frames.length) return;
   const index = next++;
@@ -458,6 +472,7 @@ async function processNext() {
     );
     return;
   }
+  if (next >= seq.frames.length) finishRecording(r);
   const flowOverlay = colour ? flowTracks(colour, decoded) : null;
   // The depth view's thumbnail at full 16-bit precision, without a second PNG decode.
   const depthPreview = { width: PREVIEW_WIDTH, height: PREVIEW_HEIGHT, metres: slam.depthPreview(PREVIEW_WIDTH, PREVIEW_HEIGHT) };

@@ -366,6 +366,7 @@ fn track_frames(
 ) -> Played {
     let bar = progress_bar(frames.len(), quiet);
     let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
+    let mut last = None;
     for entry in frames {
         let result = source
             .read_frame(entry, &slam.config().depth)
@@ -401,6 +402,7 @@ fn track_frames(
                     "{} surfels, {} lost, {} recovered",
                     report.surfels, report.counts.lost, report.counts.recovered
                 ));
+                last = Some((*entry, report));
             }
             Err(e) => {
                 if let Some(log) = frame_log.as_deref_mut() {
@@ -411,6 +413,22 @@ fn track_frames(
             }
         }
         bar.inc(1);
+    }
+    if let Some((entry, mut report)) = last {
+        // The recording ended: its last frame is looked up among the old
+        // keyframes too, whatever the global check's schedule.
+        report.loop_outcome = slam.finish();
+        if let Some(log) = loop_log {
+            log.record(slam, &report);
+        }
+        if let Some(g) = report.loop_outcome.global.filter(|g| g.closed) {
+            bar.suspend(|| {
+                eprintln!(
+                    "frame {} ({}), the last, closed a loop with the keyframe of frame {}: moved {:.1} cm, {:.1} deg",
+                    entry.index, entry.timestamp, g.keyframe_frame, g.correction_m * 100.0, g.correction_deg
+                );
+            });
+        }
     }
     bar.finish_and_clear();
     ms.sort_by(f64::total_cmp);

@@ -143,6 +143,10 @@ pub struct LoopCloser {
     global_closures: u32,
     /// Frame of the last global closure.
     last_global: Option<u32>,
+    /// The last frame the stage ran on (a fused one).
+    ran_at: Option<u32>,
+    /// The last frame the global check looked up.
+    looked_at: Option<u32>,
 }
 
 impl LoopCloser {
@@ -161,6 +165,8 @@ impl LoopCloser {
             closures: 0,
             global_closures: 0,
             last_global: None,
+            ran_at: None,
+            looked_at: None,
         }
     }
 
@@ -208,6 +214,15 @@ impl LoopCloser {
         self.closures = 0;
         self.global_closures = 0;
         self.last_global = None;
+        self.ran_at = None;
+        self.looked_at = None;
+    }
+
+    /// The last frame the stage ran on: the last fused frame, when it is
+    /// the last pushed one.
+    #[must_use]
+    pub fn ran_at(&self) -> Option<u32> {
+        self.ran_at
     }
 
     /// A `world_from_camera` pose of frame `time` moved by the last closure
@@ -237,6 +252,7 @@ impl LoopCloser {
             tracked: *pose,
             ..LoopOutcome::default()
         };
+        self.ran_at = Some(frame.now);
         if !self.config.enabled || map.is_empty() || frame.active_from == 0 {
             return outcome;
         }
@@ -245,7 +261,31 @@ impl LoopCloser {
         }
         let local_accepted = outcome.registration.is_some_and(|r| r.accepted());
         if let (false, Some(look)) = (local_accepted, global) {
-            self.run_global(map, trajectory, pose, frame, look, &mut outcome);
+            self.run_global(map, trajectory, pose, frame, (look, false), &mut outcome);
+        }
+        outcome
+    }
+
+    /// The global check on frame `frame.now`, the one [`Self::run`] ran on
+    /// last, whatever `GlobalConfig::every_frames` says: the recording
+    /// ended there (see [`crate::Pipeline::finish`]). Nothing when the
+    /// stage did not run on that frame or already looked it up, or a
+    /// global closure is resting. `trajectory` holds the frames before it.
+    pub fn look_now(
+        &mut self,
+        map: &mut SurfelMap,
+        trajectory: &mut [(f64, DAffine3)],
+        pose: &mut DAffine3,
+        frame: &LoopFrame<'_>,
+        look: GlobalLook<'_>,
+    ) -> LoopOutcome {
+        let mut outcome = LoopOutcome {
+            tracked: *pose,
+            ..LoopOutcome::default()
+        };
+        let unseen = self.ran_at == Some(frame.now) && self.looked_at != Some(frame.now);
+        if unseen && self.config.enabled && !map.is_empty() && frame.active_from > 0 {
+            self.run_global(map, trajectory, pose, frame, (look, true), &mut outcome);
         }
         outcome
     }
@@ -318,7 +358,7 @@ impl LoopCloser {
         trajectory: &mut [(f64, DAffine3)],
         pose: &mut DAffine3,
         frame: &LoopFrame<'_>,
-        look: GlobalLook<'_>,
+        (look, off_schedule): (GlobalLook<'_>, bool),
         outcome: &mut LoopOutcome,
     ) {
         let config = self.config.global;
@@ -326,10 +366,16 @@ impl LoopCloser {
         let resting = self
             .last_global
             .is_some_and(|t| now.saturating_sub(t) < config.cooldown_frames);
-        if !config.looks_at(now) || resting {
+        let looks = if off_schedule {
+            config.may_look_at(now)
+        } else {
+            config.looks_at(now)
+        };
+        if !looks || resting {
             return;
         }
         outcome.global_looked = true;
+        self.looked_at = Some(now);
         let found = {
             let map_ref = &*map;
             let (fusion, fused) = (frame.fusion, frame.fused);

@@ -154,8 +154,8 @@ impl GlobalMatch {
 /// Why a global look found no loop to close.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GlobalMiss {
-    /// Not a frame the check looks at ([`GlobalConfig::looks_at`]), or the
-    /// tracked pose is not finite.
+    /// Not a frame the check may look at ([`GlobalConfig::may_look_at`]:
+    /// off, or too early), or the tracked pose is not finite.
     NotLooked,
     /// No keyframe old enough looks like the frame.
     NoKeyframe,
@@ -191,7 +191,7 @@ impl GlobalMiss {
 /// the frame encoded in `relocaliser` (`pyramid`, tracked at `tracked`,
 /// frame `now`); `model` should hold the inactive surfels only. The miss
 /// says which step found nothing: a frame it does not look at
-/// ([`GlobalConfig::looks_at`]), no old keyframe like the frame, no
+/// ([`GlobalConfig::may_look_at`]; the schedule is the caller's), no old keyframe like the frame, no
 /// registration passing, a correction below the minimum or above the
 /// maximum, or a second answer near the tracked pose.
 pub fn find_global_match<F: Fn(usize) -> bool + Sync>(
@@ -204,7 +204,7 @@ pub fn find_global_match<F: Fn(usize) -> bool + Sync>(
     config: &GlobalConfig,
 ) -> Result<GlobalMatch, GlobalMiss> {
     let before = now.checked_sub(config.min_age_frames);
-    let Some(before) = before.filter(|_| config.looks_at(now) && tracked.is_finite()) else {
+    let Some(before) = before.filter(|_| config.may_look_at(now) && tracked.is_finite()) else {
         return Err(GlobalMiss::NotLooked);
     };
     let Some(mut registration) = relocaliser.place(pyramid, model, trackers, workspace, 0..before)
@@ -312,7 +312,15 @@ impl GlobalConfig {
     /// every `every_frames`, and keyframes old enough can exist.
     #[must_use]
     pub fn looks_at(&self, now: u32) -> bool {
-        self.enabled && now % self.every_frames.max(1) == 0 && now >= self.min_age_frames
+        self.may_look_at(now) && now % self.every_frames.max(1) == 0
+    }
+
+    /// Whether frame `now` may be looked up off the schedule (the last
+    /// frame of a recording): the check is on and keyframes old enough can
+    /// exist.
+    #[must_use]
+    pub fn may_look_at(&self, now: u32) -> bool {
+        self.enabled && now >= self.min_age_frames
     }
 }
 

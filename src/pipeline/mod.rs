@@ -12,6 +12,7 @@
 
 mod carried;
 mod config;
+mod finish;
 mod input;
 mod localise;
 mod recovery;
@@ -523,6 +524,14 @@ impl Pipeline {
     /// pose (the constant-velocity motion is then measured between poses
     /// corrected alike).
     fn close_loops(&mut self, pose: &mut DAffine3, index: u32) -> LoopOutcome {
+        self.run_loop_stage(pose, index, false)
+    }
+
+    /// [`Self::close_loops`] (`finishing` false) or, for the last frame
+    /// pushed, once fused, the global check off its schedule (`finishing`
+    /// true, see [`Self::finish`]: the trajectory then holds that frame
+    /// already, which `pose` stands for).
+    fn run_loop_stage(&mut self, pose: &mut DAffine3, index: u32, finishing: bool) -> LoopOutcome {
         let k = self.config.working_intrinsics();
         let frame = LoopFrame {
             now: index,
@@ -534,7 +543,8 @@ impl Pipeline {
             fusion: &self.config.fusion,
             active_from: self.active_at(index).start,
             far_m: self.config.depth.max_m,
-            fused: self.fused_in_segment(),
+            // During a frame its verdict is not counted yet.
+            fused: self.fused_in_segment().saturating_sub(u32::from(finishing)),
             verify: &self.config.tracker.verify,
         };
         let global = GlobalLook {
@@ -544,13 +554,20 @@ impl Pipeline {
             wide: &self.recovery,
             workspace: &mut self.tracker,
         };
-        let outcome = self.loop_closer.run(
-            &mut self.map,
-            &mut self.trajectory,
-            pose,
-            &frame,
-            Some(global),
-        );
+        let outcome = if finishing {
+            let before = self.trajectory.len().saturating_sub(1);
+            let trajectory = &mut self.trajectory[..before];
+            self.loop_closer
+                .look_now(&mut self.map, trajectory, pose, &frame, global)
+        } else {
+            self.loop_closer.run(
+                &mut self.map,
+                &mut self.trajectory,
+                pose,
+                &frame,
+                Some(global),
+            )
+        };
         if outcome.closed {
             // The trajectory's last entry is the last good pose, or (after
             // lost frames) a copy of it held.

@@ -11,6 +11,7 @@ use wasm_bindgen::prelude::*;
 use crate::camera::CameraPreset;
 use crate::dataset::DatasetKind;
 use crate::eval::AteResult;
+use crate::loop_closure::LoopOutcome;
 use crate::pipeline::{FrameReport, Verdict};
 use crate::se3::unit_quaternion;
 
@@ -65,6 +66,19 @@ export interface FrameReport {
   cameraFixedShare: number;
   /** Milliseconds per stage. */
   timings: { decode: number; preprocess: number; track: number; fuse: number; loop: number; predict: number; total: number };
+}
+
+/** What Slam.finish() did: the recording ended, and its last frame was looked up among the old keyframes once more. */
+export interface FinishReport {
+  /** The global check looked the last frame up (false: no frame yet, the last one lost or already looked up, localising, loop closure off). */
+  looked: boolean;
+  /** It closed a loop: every surfel and past pose may have moved (take the whole changed range and the trajectory again). */
+  loopClosed: boolean;
+  /** What the check decided, one line naming the frame; null when it did not look. */
+  loopDecision: string | null;
+  /** Loop closures of the run so far, and of them the global ones. */
+  loopClosures: number;
+  globalLoopClosures: number;
 }
 
 /** The dataset layouts detectLayout recognises. */
@@ -259,6 +273,25 @@ pub fn report_to_js(r: &FrameReport) -> JsValue {
         ),
         ("cameraFixedShare", r.camera_fixed_share.into()),
         ("timings", timings.into()),
+    ])
+    .into()
+}
+
+/// The JS result of `finish` (see docs/js-api.md): `outcome` of the last
+/// frame (`frame`), with the run's closure counts.
+#[must_use]
+pub fn finish_to_js(outcome: &LoopOutcome, frame: u32, (closures, global): (u32, u32)) -> JsValue {
+    object(&[
+        ("looked", outcome.global_looked.into()),
+        ("loopClosed", outcome.closed.into()),
+        (
+            "loopDecision",
+            outcome.decision().map_or(JsValue::NULL, |d| {
+                (d + &format!(" (frame {frame}, the last)")).into()
+            }),
+        ),
+        ("loopClosures", closures.into()),
+        ("globalLoopClosures", global.into()),
     ])
     .into()
 }

@@ -10,7 +10,7 @@ use js_sys::{Array, Float32Array, Uint8Array};
 use wasm_bindgen::prelude::*;
 
 use super::config::slam_config_from_js;
-use super::convert::{ate_to_js, max_dt_from_js, report_to_js};
+use super::convert::{ate_to_js, finish_to_js, max_dt_from_js, report_to_js};
 use super::session::{session_error, LoadOptions};
 use crate::camera::CameraPreset;
 use crate::dataset::trajectory::{format_tum, parse_tum};
@@ -366,6 +366,22 @@ impl Slam {
     #[must_use]
     pub fn export_ply(&self) -> Vec<u8> {
         write_surfel_ply(self.pipeline.map())
+    }
+
+    /// The recording ended: looks its last frame up among the old
+    /// keyframes when the global check's schedule skipped it, and on a
+    /// verified match corrects the map and the trajectory as any global
+    /// closure does. Callable at any time; a second call does nothing, and
+    /// frames pushed after it go on from the corrected pose.
+    #[wasm_bindgen(unchecked_return_type = "FinishReport")]
+    pub fn finish(&mut self) -> JsValue {
+        let outcome = self.pipeline.finish();
+        let frame = self.pipeline.frames().saturating_sub(1);
+        let counts = (
+            self.pipeline.loop_closures(),
+            self.pipeline.global_loop_closures(),
+        );
+        finish_to_js(&outcome, frame, counts)
     }
 
     /// Forgets the map and the trajectory; keeps the configuration. Pushing

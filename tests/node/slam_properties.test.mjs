@@ -87,7 +87,7 @@ function runCase(m, clip, garbage, seed, steps, firstRun, log) {
   let cursor = r.below(clip.sequence.frames.length);
   let clock = 0;
   let forced = false;
-  const cov = { steps: 0, frames: 0, lost: 0, refused: 0, resets: 0, resetsAfter100: 0, configs: 0, exports: 0, budgetFull: 0, longestRun: 0 };
+  const cov = { steps: 0, frames: 0, lost: 0, refused: 0, resets: 0, resetsAfter100: 0, configs: 0, exports: 0, finishes: 0, budgetFull: 0, longestRun: 0 };
   try {
     for (let step = 0; step < steps; step++) {
       const where = `seed ${seed}, step ${step} (${slam.frames} frames)`;
@@ -151,9 +151,21 @@ function runCase(m, clip, garbage, seed, steps, firstRun, log) {
       } else if (roll < 98) {
         const [s, e] = Array.from(slam.takeChangedRange());
         assert.ok(s >= 0 && s <= e && e <= slam.surfelCount, `${where}: changed range [${s}, ${e}] of ${slam.surfelCount}`);
-      } else {
+      } else if (roll < 99) {
         const preview = slam.depthPreview(32, 24);
         assert.ok(preview.length === 0 || preview.length === 32 * 24, `${where}: preview length ${preview.length}`);
+      } else {
+        // The recording "ends" here; more frames may follow.
+        const f = slam.finish();
+        assert.equal(typeof f.looked, 'boolean', `${where}: finish.looked`);
+        assert.ok(f.looked || !f.loopClosed, `${where}: closed without looking`);
+        assert.ok(f.globalLoopClosures <= f.loopClosures, `${where}: finish closures`);
+        if (model.last) {
+          assert.ok(f.loopClosures >= model.last.loopClosures, `${where}: finish lost closures`);
+          model.last.loopClosures = f.loopClosures;
+        }
+        assert.equal(slam.finish().looked, false, `${where}: the last frame looked up twice`);
+        cov.finishes++;
       }
       check(slam, model, where);
       cov.steps++;
@@ -184,5 +196,5 @@ test('any sequence of Slam calls keeps it consistent (bundled clip)', { skip, ti
   const sum = (k) => total.reduce((a, c) => a + c[k], 0);
   t.diagnostic(`${cases.length} cases, ${sum('steps')} steps, ${sum('frames')} frames, longest run ${Math.max(...total.map((c) => c.longestRun))}`);
   assert.ok(sum('resetsAfter100') > 0, 'a reset after 100+ frames');
-  assert.ok(sum('refused') > 0 && sum('exports') > 0);
+  assert.ok(sum('refused') > 0 && sum('exports') > 0 && sum('finishes') > 0);
 });
