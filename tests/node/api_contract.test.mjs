@@ -191,6 +191,16 @@ test('frame report: a real report, the typing and the docs agree', { skip }, asy
     sameSet(docTable(md, 'Frame report'), actual, 'docs/js-api.md "Frame report" vs a real report');
     const row = readmeRow(readFileSync(path.join(ROOT, 'pkg-config/README.md'), 'utf8'), 'slam.pushFrame(');
     sameSet(sketchFields(row.slice(row.indexOf('`{') + 1)), actual, 'pkg-config/README.md pushFrame row vs a real report');
+    // The recording ended after one frame: nothing old to look the frame up in.
+    const end = slam.finish();
+    const finished = objectFields(end);
+    assert.equal(end.looked, false);
+    sameSet(tsFields(interfaceBody(ts, 'FinishReport')), finished, 'FinishReport typing vs a real one');
+    const finishRow = readmeRow(readFileSync(path.join(ROOT, 'pkg-config/README.md'), 'utf8'), 'slam.finish(');
+    sameSet(sketchFields(finishRow.slice(finishRow.indexOf('`{') + 1)), finished, 'pkg-config/README.md finish row vs a real one');
+    const docLine = md.split('\n').find((l) => l.startsWith('slam.finish()'));
+    assert.ok(docLine, 'docs/js-api.md has no slam.finish() line');
+    sameSet(sketchFields(docLine.slice(docLine.indexOf('{'))), finished, 'docs/js-api.md finish line vs a real one');
   } finally {
     slam.free();
   }
