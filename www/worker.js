@@ -409,7 +409,7 @@ function finishRecording(r) {
   r.loopClosures = f.loopClosures;
   r.globalLoopClosures = f.globalLoopClosures;
   r.loopClosed = r.loopClosed || f.loopClosed;
-  r.loopDecision = [r.loopDecision, f.loopDecision].filter(Boolean).join('; ');
+  r.loopDecision = [r.loopDecision, f.loopDecision].filter(Boolean).join('; ') || null;
 }
 
 async function processNext() {
