@@ -269,8 +269,10 @@ impl LoopCloser {
     /// The global check on frame `frame.now`, the one [`Self::run`] ran on
     /// last, whatever `GlobalConfig::every_frames` says: the recording
     /// ended there (see [`crate::Pipeline::finish`]). Nothing when the
-    /// stage did not run on that frame or already looked it up, or a
-    /// global closure is resting. `trajectory` holds the frames before it.
+    /// stage did not run on that frame or already looked it up. The rest
+    /// after a global closure (`GlobalConfig::cooldown_frames`) does not
+    /// hold: no frame follows for a second closure to undo it.
+    /// `trajectory` holds the frames before it.
     pub fn look_now(
         &mut self,
         map: &mut SurfelMap,
@@ -363,9 +365,10 @@ impl LoopCloser {
     ) {
         let config = self.config.global;
         let now = frame.now;
-        let resting = self
-            .last_global
-            .is_some_and(|t| now.saturating_sub(t) < config.cooldown_frames);
+        let resting = !off_schedule
+            && self
+                .last_global
+                .is_some_and(|t| now.saturating_sub(t) < config.cooldown_frames);
         let looks = if off_schedule {
             config.may_look_at(now)
         } else {
