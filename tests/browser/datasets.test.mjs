@@ -1,7 +1,8 @@
 // Datasets as people have them, on the page: an archive picked (.tgz, .zip;
 // read in place by the wasm ArchiveReader), a 7-Scenes folder (ground truth
 // from its per-frame pose files: ATE and the ground-truth path shown), a
-// Stray Scanner export (256x192 depth only, confidence images), and a
+// RealSense recording as Open3D's recorder writes it (the trajectory
+// downloaded and scored against the clip's truth), a Stray Scanner export (256x192 depth only, confidence images), and a
 // half-copied folder (a missing image skips its frame, by name). All built
 // from the bundled clip, so no ../shared is needed.
 import { test } from 'node:test';
@@ -9,9 +10,24 @@ import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
 import { SHARED_DATA, startBrowser, openPage, waitForStatus, foreignRequests, saveScreenshot, skipUnlessReady } from './helpers.mjs';
-import { CLIP, makeSevenScenes, makeStray, tempDir, tumSubset, writeArchive } from '../node/datasets.mjs';
+import { CLIP, makeRealSense, makeSevenScenes, makeStray, tempDir, tumSubset, writeArchive } from '../node/datasets.mjs';
 
 const FRAMES = 12;
+
+/** Opens the page without the sample, drops the folder `dir` on it and waits
+ * until a sequence of kind `kind` has played: { page, consoleErrors, status }. */
+async function playDropped(t, env, dir, kind) {
+  const { page, consoleErrors } = await openPage(env, '/?sample=0');
+  await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
+  await page.locator('#folder-input').setInputFiles(dir);
+  const status = await waitForStatus(page, (s) => s.sequenceKind === kind && s.done && !s.playing, {
+    timeoutMs: 120_000,
+    log: (m) => t.diagnostic(m),
+  });
+  await page.waitForTimeout(300);
+  return { page, consoleErrors, status };
+}
+
 
 test('an archive picked plays like the folder', { timeout: 300_000 }, async (t) => {
   if (skipUnlessReady(t)) return;
@@ -96,14 +112,7 @@ test('a 7-Scenes folder shows its ground truth and ATE', { timeout: 300_000 }, a
   const { dir } = makeSevenScenes(CLIP, FRAMES, tmp);
   const env = await startBrowser();
   try {
-    const { page } = await openPage(env, '/?sample=0');
-    await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
-    await page.locator('#folder-input').setInputFiles(dir);
-    const status = await waitForStatus(page, (s) => s.sequenceKind === '7-scenes' && s.done && !s.playing, {
-      timeoutMs: 120_000,
-      log: (m) => t.diagnostic(m),
-    });
-    await page.waitForTimeout(300);
+    const { page, status } = await playDropped(t, env, dir, '7-scenes');
     saveScreenshot('seven-scenes-page.png', await page.screenshot());
     const info = await page.locator('#sequence-info').textContent();
     t.diagnostic(`${info}; ATE ${status.ate === null ? '-' : (status.ate * 100).toFixed(2) + ' cm'}`);
@@ -117,20 +126,54 @@ test('a 7-Scenes folder shows its ground truth and ATE', { timeout: 300_000 }, a
   }
 });
 
+test('a RealSense folder plays with the intrinsics of its JSON and file numbers as timestamps', { timeout: 300_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const tmp = tempDir('surfel-slam-page-realsense-');
+  const { dir, truthTum } = makeRealSense(CLIP, FRAMES, tmp);
+  const env = await startBrowser();
+  try {
+    const { page, consoleErrors, status } = await playDropped(t, env, dir, 'realsense');
+    saveScreenshot('realsense-page.png', await page.screenshot());
+    const info = await page.locator('#sequence-info').textContent();
+    assert.equal(status.error, null, status.error);
+    assert.equal(status.framesProcessed, FRAMES);
+    assert.equal(status.framesFailed, 0);
+    assert.equal(status.framesLost, 0);
+    assert.match(info, /realsense-d400/);
+    // The intrinsics shown are the JSON's (column-major), not the preset's;
+    // depth in the D400's millimetres.
+    const shown = await page.evaluate(() => ['fx', 'fy', 'cx', 'cy', 'depth-scale'].map((id) => Number(document.getElementById(id).value)));
+    assert.deepEqual(shown, [535.4, 539.2, 320.1, 247.6, 1000]);
+    // No ground truth in the layout: the downloaded trajectory, stamped with
+    // file numbers, scored here against the clip's truth stamped alike.
+    const [download] = await Promise.all([page.waitForEvent('download'), page.locator('#trajectory-button').click()]);
+    const trajectory = fs.readFileSync(await download.path(), 'utf8');
+    const ate = await page.evaluate(
+      async ([estimate, truth]) => {
+        const m = await import('./pkg/surfel_slam.js');
+        await m.default();
+        const a = m.ateTum(estimate, truth);
+        return { rmse: a.rmse, pairs: a.pairs };
+      },
+      [trajectory, truthTum],
+    );
+    t.diagnostic(`${info}; ${status.framesProcessed} frames, ATE ${(ate.rmse * 100).toFixed(3)} cm against the clip's truth`);
+    assert.equal(ate.pairs, FRAMES, 'one pose a file number');
+    assert.ok(ate.rmse < 0.01, `ATE ${ate.rmse} m`);
+    assert.deepEqual(consoleErrors.filter((e) => /panicked|unreachable/.test(e)), []);
+  } finally {
+    await env.close();
+    fs.rmSync(tmp, { recursive: true, force: true });
+  }
+});
+
 test('a Stray Scanner folder plays on depth alone, its low-confidence depth dropped, beside its odometry', { timeout: 300_000 }, async (t) => {
   if (skipUnlessReady(t)) return;
   const tmp = tempDir('surfel-slam-page-stray-');
   const { dir } = makeStray(CLIP, FRAMES, tmp);
   const env = await startBrowser();
   try {
-    const { page, consoleErrors } = await openPage(env, '/?sample=0');
-    await waitForStatus(page, (s) => s.ready, { timeoutMs: 60_000 });
-    await page.locator('#folder-input').setInputFiles(dir);
-    const status = await waitForStatus(page, (s) => s.sequenceKind === 'stray-scanner' && s.done && !s.playing, {
-      timeoutMs: 120_000,
-      log: (m) => t.diagnostic(m),
-    });
-    await page.waitForTimeout(300);
+    const { page, consoleErrors, status } = await playDropped(t, env, dir, 'stray-scanner');
     saveScreenshot('stray-scanner-page.png', await page.screenshot());
     const info = await page.locator('#sequence-info').textContent();
     t.diagnostic(`${info}; ${status.framesProcessed} frames, ${status.framesLost} lost, ${status.surfels} surfels, errors ${JSON.stringify(status.errors)}`);

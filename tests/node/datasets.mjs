@@ -184,16 +184,12 @@ function poseText(row) {
 }
 
 /**
- * A 7-Scenes-layout folder `<parent>/<name>/seq-01/frame-NNNNNN.*` from the
- * first `frames` frames of the TUM folder `src` that have a ground-truth pose
- * (within 0.02 s): colour copied, depth rescaled to millimetres (7-Scenes'
- * unit), pose from the ground truth. Returns { dir, poses: [[t, tx, ty, tz,
- * qx, qy, qz, qw] per frame] }.
+ * The first `frames` colour images of the TUM folder `src` with a depth image
+ * and a ground-truth pose each within 0.02 s: `[{ colour, depth, pose }]`,
+ * paths relative to `src`, `pose` the ground-truth row [t, tx, ty, tz, qx,
+ * qy, qz, qw] as strings.
  */
-export function makeSevenScenes(src, frames, parent, name = 'seven_scenes_teddy') {
-  const dir = path.join(parent, name);
-  const seqDir = path.join(dir, 'seq-01');
-  fs.mkdirSync(seqDir, { recursive: true });
+function alignedFrames(src, frames) {
   const rgb = rows(fs.readFileSync(path.join(src, 'rgb.txt'), 'utf8'));
   const depth = rows(fs.readFileSync(path.join(src, 'depth.txt'), 'utf8'));
   const gt = rows(fs.readFileSync(path.join(src, 'groundtruth.txt'), 'utf8'));
@@ -205,21 +201,70 @@ export function makeSevenScenes(src, frames, parent, name = 'seven_scenes_teddy'
     }
     return best?.r ?? null;
   };
-  const poses = [];
+  const out = [];
   for (const [t, colour] of rgb) {
-    if (poses.length === frames) break;
+    if (out.length === frames) break;
     const pose = nearest(gt, Number(t), 0.02);
     const d = nearest(depth, Number(t), 0.02);
-    if (!pose || !d) continue;
+    if (pose && d) out.push({ colour, depth: d[1], pose });
+  }
+  return out;
+}
+
+/** A TUM depth image (5000 units a metre) rewritten in millimetres. */
+function depthInMm(src, file) {
+  const png = decodeDepthPng(fs.readFileSync(path.join(src, file)));
+  return encodeDepthPng(png.width, png.height, png.data.map((v) => Math.round(v / 5)));
+}
+
+/**
+ * A 7-Scenes-layout folder `<parent>/<name>/seq-01/frame-NNNNNN.*` from the
+ * first `frames` frames of the TUM folder `src` that have a ground-truth pose
+ * (within 0.02 s): colour copied, depth rescaled to millimetres (7-Scenes'
+ * unit), pose from the ground truth. Returns { dir, poses: [[t, tx, ty, tz,
+ * qx, qy, qz, qw] per frame] }.
+ */
+export function makeSevenScenes(src, frames, parent, name = 'seven_scenes_teddy') {
+  const dir = path.join(parent, name);
+  const seqDir = path.join(dir, 'seq-01');
+  fs.mkdirSync(seqDir, { recursive: true });
+  const poses = [];
+  for (const { colour, depth, pose } of alignedFrames(src, frames)) {
     const stem = path.join(seqDir, `frame-${String(poses.length).padStart(6, '0')}`);
     fs.copyFileSync(path.join(src, colour), `${stem}.color.png`);
-    const png = decodeDepthPng(fs.readFileSync(path.join(src, d[1])));
-    const mm = png.data.map((v) => Math.round(v / 5)); // 5000 units/m -> 1000 (mm)
-    fs.writeFileSync(`${stem}.depth.png`, encodeDepthPng(png.width, png.height, mm));
+    fs.writeFileSync(`${stem}.depth.png`, depthInMm(src, depth));
     fs.writeFileSync(`${stem}.pose.txt`, poseText(pose));
     poses.push(pose.map(Number));
   }
   return { dir, poses };
+}
+
+/**
+ * A RealSense folder as Open3D's recorder writes it, `<parent>/<name>/`, from
+ * the first `frames` frames of the TUM folder `src` (Freiburg 3) that have a
+ * ground-truth pose: `color/NNNNNN.png` copied, `depth/NNNNNN.png` in
+ * millimetres (the D400's default unit), `camera_intrinsic.json` with
+ * Freiburg 3's intrinsics column-major, and the recorder's `realsense.bag`
+ * and `scene/` beside them (to be ignored). The layout has no timestamps: a
+ * frame's is its file number. Returns { dir, truthTum }: the ground truth
+ * stamped with those numbers, as TUM text.
+ */
+export function makeRealSense(src, frames, parent, name = 'realsense_teddy') {
+  const dir = path.join(parent, name);
+  for (const sub of ['color', 'depth', 'scene']) fs.mkdirSync(path.join(dir, sub), { recursive: true });
+  const [fx, fy, cx, cy] = [535.4, 539.2, 320.1, 247.6];
+  const intrinsic = { width: 640, height: 480, intrinsic_matrix: [fx, 0, 0, 0, fy, 0, cx, cy, 1] };
+  fs.writeFileSync(path.join(dir, 'camera_intrinsic.json'), JSON.stringify(intrinsic, null, 2));
+  fs.writeFileSync(path.join(dir, 'realsense.bag'), 'not read');
+  fs.writeFileSync(path.join(dir, 'scene', 'integrated.ply'), 'not read');
+  let truthTum = '';
+  alignedFrames(src, frames).forEach(({ colour, depth, pose }, i) => {
+    const stem = String(i).padStart(6, '0');
+    fs.copyFileSync(path.join(src, colour), path.join(dir, 'color', `${stem}.png`));
+    fs.writeFileSync(path.join(dir, 'depth', `${stem}.png`), depthInMm(src, depth));
+    truthTum += `${i} ${pose.slice(1).join(' ')}\n`;
+  });
+  return { dir, truthTum };
 }
 
 /**
