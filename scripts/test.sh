@@ -26,6 +26,8 @@ bash scripts/setup.sh
 section "lint"
 cargo fmt --all -- --check
 cargo clippy --all-targets --quiet -- -D warnings
+# Doc links that do not resolve (or name private items) fail here, not in a reader's browser.
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --lib --quiet
 
 section "native tests"
 # Examples are measurements, not tests: clippy --all-targets has checked

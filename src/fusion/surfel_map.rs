@@ -218,7 +218,7 @@ impl SurfelMap {
     }
 
     /// Overwrites the values of surfel `i` (not its frames); the caller
-    /// reports a moved centre with [`SurfelMap::grow_bounds`].
+    /// reports a moved centre with `SurfelMap::grow_bounds`.
     pub fn set_surfel(&mut self, i: usize, s: &Surfel) {
         self.positions[i] = s.position;
         self.normals[i] = s.normal;

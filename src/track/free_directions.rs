@@ -27,7 +27,7 @@
 //! degenerate read under the same noise with the old absolute rule. So the
 //! information a direction gets is taken *above the noise floor*: the
 //! normals' own scatter, estimated from the frame, is what noise alone
-//! would give along any direction ([`noise_floor_of_grid`],
+//! would give along any direction (`noise_floor_of_grid`,
 //! [`FreeDirections::confirmed`]'s full-resolution one).
 //! The grid proposes (its floor counts curvature as noise too, so it holds
 //! generously: on TUM fr3/teddy's rounded bear it proposed 37 of 193
@@ -193,7 +193,7 @@ impl FreeDirections {
     /// synthetic room with i.i.d. Kinect-like noise: 0.048 per point along
     /// a true slide, its floor 0.050; with structured-light noise 0.13,
     /// floor 0.20). The floor is taken from second differences of the
-    /// normals ([`SECOND_DIFFERENCE_TO_VARIANCE`]), which smooth surfaces
+    /// normals (`noise_floor::SECOND_DIFFERENCE_TO_VARIANCE`), which smooth surfaces
     /// do not reach (a mean or median squared difference from the grid's
     /// normals took the structure off too).
     /// Only pixels in grid cells the model covers count, as in
@@ -260,7 +260,7 @@ impl FreeDirections {
     /// of its normals, is below `threshold`, for the organised points of
     /// `level` (camera frame, metres) at the pixels where `counted`: the
     /// geometry of a model prediction as the model-to-model registration
-    /// sees it, every [`CONFIRM_STEP`]-th pixel each way. Fused normals
+    /// sees it, every `CONFIRM_STEP`-th pixel each way. Fused normals
     /// scatter less than a frame's but still pose as information; the
     /// floor is the full-resolution one of [`Self::confirmed`]. None when
     /// `threshold` is 0 or fewer than 6 points count.
