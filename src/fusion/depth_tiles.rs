@@ -11,6 +11,7 @@
 //! fr3/teddy).
 
 use crate::camera::Intrinsics;
+use crate::portable_math::at_least;
 use crate::se3::RigidF32;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -46,7 +47,8 @@ impl DepthTiles {
             .for_each(|(tiles, band)| {
                 for row in band.chunks_exact(width) {
                     for (far, run) in tiles.iter_mut().zip(row.chunks(TILE)) {
-                        *far = run.iter().fold(*far, |m, p| m.max(p.z));
+                        // A compare and select: wasm's f32::max is a call (`portable_math`).
+                        *far = run.iter().fold(*far, |m, p| at_least(p.z, m));
                     }
                 }
             });
