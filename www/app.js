@@ -349,6 +349,8 @@ const handlers = {
     $('reference-name').textContent = odometry.length ? "device's odometry" : 'ground truth';
     sequence = { name: msg.name, kind: msg.kind, preset: msg.preset, frameCount: msg.frameCount, groundTruth };
     settings.sequencePreset = msg.preset;
+    const { width, height } = msg.config ?? {};
+    settings.sequenceSize = Number.isInteger(width) && Number.isInteger(height) ? { width, height } : null;
     setDisplayFrame(msg.config);
     status.failed = false;
     status.sequence = msg.name;

@@ -14,6 +14,10 @@ export class CameraSettings {
     this.views = views;
     this.presets = [];
     this.sequencePreset = null; // the open sequence's preset: the base of a 'custom' config
+    // The open sequence's image size when its layout states one (a RealSense
+    // JSON at 848x480, a Stray scan's 256x192): a preset's size is its
+    // camera's default, and the frames do not change size with the preset.
+    this.sequenceSize = null;
     const apply = () => {
       // An empty field is refused, not filled from a preset behind the user's back.
       const empty = this.emptyFields();
@@ -84,8 +88,8 @@ export class CameraSettings {
     const num = (field, fallback) => (field.value === '' || !Number.isFinite(Number(field.value)) ? fallback : Number(field.value));
     return {
       preset: base.name,
-      width: base.width ?? 640,
-      height: base.height ?? 480,
+      width: this.sequenceSize?.width ?? base.width ?? 640,
+      height: this.sequenceSize?.height ?? base.height ?? 480,
       fx: num(el.fx, base.fx),
       fy: num(el.fy, base.fy),
       cx: num(el.cx, base.cx),

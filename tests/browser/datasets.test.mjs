@@ -167,6 +167,32 @@ test('a RealSense folder plays with the intrinsics of its JSON and file numbers 
   }
 });
 
+test('an 848x480 RealSense folder plays, and plays again after a settings change at its own size', { timeout: 300_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const tmp = tempDir('surfel-slam-page-realsense-848-');
+  const { dir } = makeRealSense(CLIP, FRAMES, tmp, 'realsense_848', 848);
+  const env = await startBrowser();
+  try {
+    const { page, consoleErrors, status } = await playDropped(t, env, dir, 'realsense');
+    assert.equal(status.error, null, status.error);
+    assert.equal(status.framesProcessed, FRAMES);
+    assert.equal(status.framesFailed, 0);
+    // A settings change rebuilds the run from the panel: at the folder's
+    // 848x480, not the preset's default size, or every frame is refused.
+    await page.locator('#loop-closure').uncheck();
+    await waitForStatus(page, (s) => s.playing || s.framesProcessed < FRAMES, { timeoutMs: 60_000 });
+    const again = await waitForStatus(page, (s) => s.done && !s.playing, { timeoutMs: 120_000, log: (m) => t.diagnostic(m) });
+    t.diagnostic(`after the change: ${again.framesProcessed} processed, ${again.framesFailed} failed, ${again.framesLost} lost, errors ${JSON.stringify(again.errors)}`);
+    assert.equal(again.framesFailed, 0, JSON.stringify(again.errors));
+    assert.equal(again.framesProcessed, FRAMES);
+    assert.equal(again.framesLost, 0);
+    assert.deepEqual(consoleErrors.filter((e) => /panicked|unreachable/.test(e)), []);
+  } finally {
+    await env.close();
+    fs.rmSync(tmp, { recursive: true, force: true });
+  }
+});
+
 test('a Stray Scanner folder plays on depth alone, its low-confidence depth dropped, beside its odometry', { timeout: 300_000 }, async (t) => {
   if (skipUnlessReady(t)) return;
   const tmp = tempDir('surfel-slam-page-stray-');

@@ -136,17 +136,21 @@ export function decodeDepthPng(buffer) {
 /** Encodes a 16-bit greyscale PNG. */
 export const encodeDepthPng = (width, height, data) => greyPng(width, height, data, 16);
 
+/** Encodes an 8-bit RGB PNG from interleaved `data`. */
+export const encodeRgbPng = (width, height, data) => greyPng(width, height, data, 8, 3);
+
 /** Encodes an 8-bit greyscale PNG (a Stray Scanner confidence image). */
 export const encodeGrey8Png = (width, height, data) => greyPng(width, height, data, 8);
 
-function greyPng(width, height, data, bits) {
+function greyPng(width, height, data, bits, channels = 1) {
   const bytes = bits / 8;
-  const raw = Buffer.alloc((bytes * width + 1) * height);
+  const samples = channels * width;
+  const raw = Buffer.alloc((bytes * samples + 1) * height);
   for (let y = 0; y < height; y++) {
-    for (let x = 0; x < width; x++) {
-      const at = y * (bytes * width + 1) + 1 + bytes * x;
-      if (bits === 16) raw.writeUInt16BE(data[y * width + x], at);
-      else raw[at] = data[y * width + x];
+    for (let x = 0; x < samples; x++) {
+      const at = y * (bytes * samples + 1) + 1 + bytes * x;
+      if (bits === 16) raw.writeUInt16BE(data[y * samples + x], at);
+      else raw[at] = data[y * samples + x];
     }
   }
   const chunk = (type, body) => {
@@ -161,7 +165,7 @@ function greyPng(width, height, data, bits) {
   ihdr.writeUInt32BE(width, 0);
   ihdr.writeUInt32BE(height, 4);
   ihdr[8] = bits;
-  ihdr[9] = 0;
+  ihdr[9] = channels === 3 ? 2 : 0; // RGB or grey
   return Buffer.concat([Buffer.from([137, 80, 78, 71, 13, 10, 26, 10]), chunk('IHDR', ihdr), chunk('IDAT', zlib.deflateSync(raw)), chunk('IEND', Buffer.alloc(0))]);
 }
 
@@ -211,10 +215,25 @@ function alignedFrames(src, frames) {
   return out;
 }
 
-/** A TUM depth image (5000 units a metre) rewritten in millimetres. */
-function depthInMm(src, file) {
+/** A TUM depth image (5000 units a metre) rewritten in millimetres, `width` wide (no depth to the right). */
+function depthInMm(src, file, width = null) {
   const png = decodeDepthPng(fs.readFileSync(path.join(src, file)));
-  return encodeDepthPng(png.width, png.height, png.data.map((v) => Math.round(v / 5)));
+  const w = width ?? png.width;
+  const mm = new Uint16Array(w * png.height);
+  for (let i = 0; i < mm.length; i++) {
+    const [u, v] = [i % w, Math.floor(i / w)];
+    mm[i] = u < png.width ? Math.round(png.data[v * png.width + u] / 5) : 0;
+  }
+  return encodeDepthPng(w, png.height, mm);
+}
+
+/** An 8-bit RGB PNG `width` wide, the image of `file` on the left, black to the right. */
+function colourWidened(file, width) {
+  const png = decodePng(fs.readFileSync(file));
+  if (png.bitDepth !== 8 || png.channels !== 3) throw new Error(`${file}: expected 8-bit RGB`);
+  const out = new Uint8Array(3 * width * png.height);
+  for (let v = 0; v < png.height; v++) out.set(png.data.subarray(3 * v * png.width, 3 * (v + 1) * png.width), 3 * v * width);
+  return encodeRgbPng(width, png.height, out);
 }
 
 /**
@@ -246,22 +265,25 @@ export function makeSevenScenes(src, frames, parent, name = 'seven_scenes_teddy'
  * millimetres (the D400's default unit), `camera_intrinsic.json` with
  * Freiburg 3's intrinsics column-major, and the recorder's `realsense.bag`
  * and `scene/` beside them (to be ignored). The layout has no timestamps: a
- * frame's is its file number. Returns { dir, truthTum }: the ground truth
- * stamped with those numbers, as TUM text.
+ * frame's is its file number. `width` beyond 640 widens every image on the
+ * right with pixels that saw nothing (an 848x480 recording). Returns { dir,
+ * truthTum }: the ground truth stamped with those numbers, as TUM text.
  */
-export function makeRealSense(src, frames, parent, name = 'realsense_teddy') {
+export function makeRealSense(src, frames, parent, name = 'realsense_teddy', width = 640) {
   const dir = path.join(parent, name);
   for (const sub of ['color', 'depth', 'scene']) fs.mkdirSync(path.join(dir, sub), { recursive: true });
   const [fx, fy, cx, cy] = [535.4, 539.2, 320.1, 247.6];
-  const intrinsic = { width: 640, height: 480, intrinsic_matrix: [fx, 0, 0, 0, fy, 0, cx, cy, 1] };
+  const intrinsic = { width, height: 480, intrinsic_matrix: [fx, 0, 0, 0, fy, 0, cx, cy, 1] };
   fs.writeFileSync(path.join(dir, 'camera_intrinsic.json'), JSON.stringify(intrinsic, null, 2));
   fs.writeFileSync(path.join(dir, 'realsense.bag'), 'not read');
   fs.writeFileSync(path.join(dir, 'scene', 'integrated.ply'), 'not read');
   let truthTum = '';
   alignedFrames(src, frames).forEach(({ colour, depth, pose }, i) => {
     const stem = String(i).padStart(6, '0');
-    fs.copyFileSync(path.join(src, colour), path.join(dir, 'color', `${stem}.png`));
-    fs.writeFileSync(path.join(dir, 'depth', `${stem}.png`), depthInMm(src, depth));
+    const colourOut = path.join(dir, 'color', `${stem}.png`);
+    if (width === 640) fs.copyFileSync(path.join(src, colour), colourOut);
+    else fs.writeFileSync(colourOut, colourWidened(path.join(src, colour), width));
+    fs.writeFileSync(path.join(dir, 'depth', `${stem}.png`), depthInMm(src, depth, width));
     truthTum += `${i} ${pose.slice(1).join(' ')}\n`;
   });
   return { dir, truthTum };
