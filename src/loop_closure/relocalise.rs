@@ -543,11 +543,15 @@ fn see_through_fraction(
     seen_through as f64 / landed.max(1) as f64
 }
 
-/// Intrinsics of a small image whose blocks are `block` pixels of the
-/// image seen through `k` (block centres at the centres of the pixels
-/// they average).
+/// Intrinsics of the small image `frame` made from the image seen through
+/// `k` (block centres at the centres of the pixels they average). Its
+/// blocks split the image evenly, so a block spans `k.width / frame.width`
+/// pixels, not a whole number of them at 256x192 or 848x480.
 fn small_intrinsics(k: &Intrinsics, frame: &FernFrame) -> Intrinsics {
-    let (bx, by) = (frame.block.0.max(1) as f32, frame.block.1.max(1) as f32);
+    let (bx, by) = (
+        k.width as f32 / frame.width.max(1) as f32,
+        k.height as f32 / frame.height.max(1) as f32,
+    );
     Intrinsics::new(
         k.fx / bx,
         k.fy / by,
@@ -621,5 +625,48 @@ fn icp_only(c: &TrackerConfig) -> TrackerConfig {
         mode: TrackerMode::Icp,
         hold_below_eigenvalue: 0.0,
         ..c.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each small pixel is the mean of a block that splits the image
+    /// evenly (`ferns::downsample_into`): the point seen at that block's
+    /// mean column and row must land on that small pixel, at 640x480 (8x8
+    /// blocks) as at an iPhone's 256x192 (3.2) and an 848x480 RealSense
+    /// frame (10.6 x 8).
+    #[test]
+    fn small_intrinsics_put_each_block_mean_on_its_small_pixel() {
+        for (width, height) in [(640, 480), (256, 192), (848, 480)] {
+            let k = Intrinsics::new(
+                0.8 * width as f32,
+                0.8 * width as f32,
+                0.5 * width as f32 - 0.3,
+                0.5 * height as f32 + 0.7,
+                width,
+                height,
+            );
+            let frame = FernFrame {
+                width: 80,
+                height: 60,
+                block: (width / 80, height / 60),
+                ..FernFrame::default()
+            };
+            let small = small_intrinsics(&k, &frame);
+            let mean = |i: usize, full: usize, n: usize| {
+                let (a, b) = (i * full / n, (i + 1) * full / n);
+                0.5 * (a + b - 1) as f32
+            };
+            for (i, j) in [(0, 0), (17, 42), (79, 59), (40, 30)] {
+                let p = k.back_project(mean(i, width, 80), mean(j, height, 60), 2.0);
+                let uv = small.project(p);
+                assert!(
+                    (uv.x - i as f32).abs() < 0.3 && (uv.y - j as f32).abs() < 0.3,
+                    "{width}x{height}: block ({i}, {j}) lands at {uv}"
+                );
+            }
+        }
     }
 }
