@@ -351,6 +351,8 @@ const handlers = {
     settings.sequencePreset = msg.preset;
     const { width, height } = msg.config ?? {};
     settings.sequenceSize = Number.isInteger(width) && Number.isInteger(height) ? { width, height } : null;
+    const frameSize = settings.current();
+    views.setAspect(frameSize.width, frameSize.height);
     setDisplayFrame(msg.config);
     status.failed = false;
     status.sequence = msg.name;

@@ -42,6 +42,12 @@ export class InputViews {
     this.depthImage = this.depthCtx.createImageData(VIEW_W, VIEW_H);
   }
 
+  /** Shows the thumbnails at the aspect of `width` x `height` frames (an 848x480 RealSense recording is 16:9). */
+  setAspect(width, height) {
+    const aspect = width > 0 && height > 0 ? `${width} / ${height}` : '4 / 3';
+    for (const c of [this.colour, this.depth]) c.style.aspectRatio = aspect;
+  }
+
   setDepthRange(min, max) {
     this.range = [min, max];
     this.depthScale = 0; // rebuild the lookup tables

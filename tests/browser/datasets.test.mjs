@@ -177,6 +177,10 @@ test('an 848x480 RealSense folder plays, and plays again after a settings change
     assert.equal(status.error, null, status.error);
     assert.equal(status.framesProcessed, FRAMES);
     assert.equal(status.framesFailed, 0);
+    // The input thumbnails keep the frames' 16:9, not the 4:3 of 640x480.
+    const box = await page.locator('#colour-view').boundingBox();
+    assert.ok(Math.abs(box.width / box.height - 848 / 480) < 0.05, `colour view ${box.width}x${box.height}`);
+    saveScreenshot('realsense-848-page.png', await page.screenshot());
     // A settings change rebuilds the run from the panel: at the folder's
     // 848x480, not the preset's default size, or every frame is refused.
     await page.locator('#loop-closure').uncheck();
