@@ -113,8 +113,10 @@ pub struct FernFrame {
     pub width: usize,
     /// Height of the small image, pixels.
     pub height: usize,
-    /// Full-resolution pixels per small pixel, horizontally and vertically
-    /// (the small image's intrinsics are the input's divided by these).
+    /// Full-resolution pixels per small pixel, horizontally and vertically,
+    /// rounded down: the blocks split the input evenly, so at 256x192 they
+    /// are 3 or 4 pixels wide (the small image's intrinsics divide by the
+    /// exact ratio, the input's width over `width`).
     pub block: (usize, usize),
     /// Mean colour per block, RGB8, row-major.
     pub rgb: Vec<[u8; 3]>,
