@@ -34,6 +34,15 @@ fn truth(frames: usize) -> Vec<DAffine3> {
     poses.iter().map(|p| origin * *p).collect()
 }
 
+/// The truth stamped as a RealSense folder's frames are: by file number.
+fn truth_by_file_number(frames: usize) -> Vec<(f64, DAffine3)> {
+    truth(frames)
+        .into_iter()
+        .enumerate()
+        .map(|(i, p)| (i as f64, p))
+        .collect()
+}
+
 /// Renders frame `i` with `k` (no noise): colour and depth in millimetres.
 fn render_mm(scene: &Scene, k: &Intrinsics, i: usize) -> (Vec<u8>, Vec<u16>) {
     let pose = synthetic::trajectory_pose(i);
@@ -238,11 +247,7 @@ fn realsense_folder_is_detected_parsed_and_run() {
         a.stdout
     );
     assert!(!a.stderr.contains("warning"), "{}", a.stderr);
-    let truth: Vec<(f64, DAffine3)> = truth(FRAMES)
-        .into_iter()
-        .enumerate()
-        .map(|(i, p)| (i as f64, p))
-        .collect();
+    let truth = truth_by_file_number(FRAMES);
     let (rmse, pairs) = ate_of(&out, &truth);
     eprintln!(
         "RealSense: {}ATE against the rendered truth {rmse} m",
@@ -371,11 +376,7 @@ fn realsense_sizes_of_the_d400_run() {
             trajectory::parse_tum(&text, "estimate").unwrap().len(),
             SIZE_FRAMES
         );
-        let truth: Vec<(f64, DAffine3)> = truth(SIZE_FRAMES)
-            .into_iter()
-            .enumerate()
-            .map(|(i, p)| (i as f64, p))
-            .collect();
+        let truth = truth_by_file_number(SIZE_FRAMES);
         let (rmse, pairs) = ate_of(&out, &truth);
         eprintln!("{width}x{height}: ATE against the rendered truth {rmse} m");
         assert_eq!(pairs, SIZE_FRAMES);
