@@ -12,7 +12,7 @@ import { readFile } from 'node:fs/promises';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { performance } from 'node:perf_hooks';
-import { listFiles } from '../tests/node/files.mjs';
+import { openSequence } from '../tests/node/sequence.mjs';
 
 const root = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 const args = process.argv.slice(2);
@@ -32,11 +32,7 @@ async function load(dir) {
 }
 const builds = [await load(pkgA), await load(pkgB)];
 
-const names = (await listFiles(folder)).sort();
-const layout = builds[0].detectLayout(names);
-const texts = {};
-for (const f of layout.indexFiles) texts[f] = await readFile(path.join(folder, f), 'utf8');
-const sequence = builds[0].parseSequence(names, texts, path.basename(folder));
+const { sequence } = await openSequence(builds[0], folder);
 const frames = sequence.frames.slice(0, Math.min(limit, sequence.frames.length));
 
 const slams = builds.map((b) => new b.Slam({ preset: sequence.preset }));

@@ -11,7 +11,7 @@ import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
 import { loadPackage, PKG } from './long_run.mjs';
-import { listFiles } from './files.mjs';
+import { openSequence } from './sequence.mjs';
 
 const skip = fs.existsSync(path.join(PKG, 'surfel_slam.js')) ? false : `${PKG} is not built: run scripts/build.sh`;
 const num = (i) => String(i).padStart(6, '0');
@@ -108,10 +108,7 @@ test('pushFiles: a Stray frame pushed as its files, depth only with confidence; 
  * Returns { seq, trajectoryTum, verdicts }.
  */
 async function playFolder(m, dir) {
-  const names = (await listFiles(dir)).sort();
-  const layout = m.detectLayout(names);
-  const texts = Object.fromEntries(layout.indexFiles.map((f) => [f, fs.readFileSync(path.join(dir, f), 'utf8')]));
-  const seq = m.parseSequence(names, texts, path.basename(dir));
+  const { sequence: seq } = await openSequence(m, dir);
   const slam = new m.Slam({ ...seq.intrinsics, preset: seq.preset });
   const bytes = (f) => (f === null ? null : new Uint8Array(fs.readFileSync(path.join(dir, f))));
   const verdicts = seq.frames.map(
