@@ -152,6 +152,45 @@ impl Intrinsics {
         }
     }
 
+    /// The intrinsics of this camera's images resized to `width` x
+    /// `height` pixels: scaled by `width / self.width` when the aspect
+    /// ratio is the same (pixel centres kept consistent, as in
+    /// [`Self::half`]); otherwise the focal lengths are kept and the
+    /// principal point keeps its place relative to the image, a guess
+    /// (another aspect is another camera mode, which needs its own
+    /// calibration: [`Self::same_aspect`] tells).
+    #[must_use]
+    pub fn for_image_size(&self, width: usize, height: usize) -> Self {
+        if (width, height) == (self.width, self.height) || self.width == 0 || self.height == 0 {
+            return Self {
+                width,
+                height,
+                ..*self
+            };
+        }
+        let sx = width as f32 / self.width as f32;
+        let sy = height as f32 / self.height as f32;
+        let (fx, fy) = if self.same_aspect(width, height) {
+            (self.fx * sx, self.fy * sx)
+        } else {
+            (self.fx, self.fy)
+        };
+        Self {
+            fx,
+            fy,
+            cx: (self.cx + 0.5) * sx - 0.5,
+            cy: (self.cy + 0.5) * sy - 0.5,
+            width,
+            height,
+        }
+    }
+
+    /// Whether images of `width` x `height` pixels have this image's aspect ratio.
+    #[must_use]
+    pub fn same_aspect(&self, width: usize, height: usize) -> bool {
+        width as u64 * self.height as u64 == height as u64 * self.width as u64
+    }
+
     /// Intrinsics of pyramid level `level` (0 = full resolution).
     #[must_use]
     pub fn level(&self, level: usize) -> Self {
@@ -207,6 +246,29 @@ pub fn project_to_pixels_into(
 mod tests {
     use super::*;
     use glam::{DAffine3, DQuat, DVec3};
+
+    #[test]
+    fn intrinsics_follow_a_resized_image() {
+        let k = Intrinsics::new(535.4, 539.2, 320.1, 247.6, 640, 480);
+        // Half the size: as a pyramid level.
+        assert_eq!(k.for_image_size(320, 240), k.half());
+        assert_eq!(k.for_image_size(640, 480), k);
+        let double = k.for_image_size(1280, 960);
+        assert_eq!(
+            (double.fx, double.fy, double.width, double.height),
+            (1070.8, 1078.4, 1280, 960)
+        );
+        assert!((double.cx - 640.7).abs() < 1e-3 && (double.cy - 495.7).abs() < 1e-3);
+        // Another aspect: the focal lengths kept, the principal point in its place.
+        let wide = k.for_image_size(848, 480);
+        assert!(!k.same_aspect(848, 480) && k.same_aspect(320, 240));
+        assert_eq!(
+            (wide.fx, wide.fy, wide.cy, wide.width),
+            (535.4, 539.2, 247.6, 848)
+        );
+        assert!((wide.cx - (320.6 * 848.0 / 640.0 - 0.5)).abs() < 1e-3);
+        assert!(wide.is_valid());
+    }
 
     #[test]
     fn project_inverts_back_project() {

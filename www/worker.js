@@ -26,6 +26,7 @@ import { PREVIEW_WIDTH, PREVIEW_HEIGHT, pushedAsFiles } from './colour-decode.js
 import { errorText, isModuleFailure, startModule as loadModule, toPlain } from './wasm-module.js';
 import { FrameFeed, describeFrameError } from './frame-feed.js';
 import { colourOfScan } from './video-colour.js';
+import { sequenceCamera } from './sequence-camera.js';
 import { copyChanged, RollingRefresh, surfelBuffers } from './surfel-copy.js';
 import { coversWholeMap } from './surfel-buffers.js';
 import { answerExport } from './worker-exports.js';
@@ -130,8 +131,6 @@ async function initModule() {
   feed.startReader();
   post({ type: FromWorker.READY, module: moduleKind, threads, presets, notes, frameReader: feed.inReader });
 }
-
-const presetName = (p) => (typeof p === 'string' ? p : p?.name ?? null);
 
 // Lucas-Kanade tracks between consecutive colour images, for the live
 // view's overlay; only computed while the page asks for them.
@@ -242,13 +241,8 @@ async function load({ name, entries, autoplay, options }) {
   }
   // Before anything changes: the sequence playing goes on while the video is probed.
   const colour = await colourOfScan(parsed.frames, paths, source);
-  const preset = presetName(parsed.preset);
-  const newConfig = { preset };
-  if (parsed.preset && typeof parsed.preset === 'object') Object.assign(newConfig, parsed.preset);
-  delete newConfig.name;
-  newConfig.preset = preset;
-  // RealSense and Stray Scanner folders carry their own calibration: it wins over the preset's.
-  if (parsed.intrinsics) Object.assign(newConfig, parsed.intrinsics);
+  const newConfig = await sequenceCamera(wasm, parsed, source);
+  const preset = newConfig.preset;
   // The page's own choices carry over to a new sequence.
   for (const key of ['tracker', 'halfResolution', 'noise', 'loopClosure']) if (options?.[key] !== undefined) newConfig[key] = options[key];
   let continued = null;

@@ -8,7 +8,7 @@ use surfel_slam::dataset::Sequence;
 use surfel_slam::eval::ate;
 use surfel_slam::{Pipeline, SlamConfig, StageTimings, Verdict};
 
-use crate::{config_for, CameraOverrides, TrackingArgs, MAX_DT};
+use crate::{at_frame_size, config_for, CameraOverrides, TrackingArgs, MAX_DT};
 
 #[derive(Args)]
 pub struct BenchArgs {
@@ -216,8 +216,11 @@ fn bench_config(args: &BenchArgs, sequence: &Sequence, bytes: &[PngPair]) -> Res
     let (colour, depth) = &bytes[0];
     let first = surfel_slam::RgbdFrame::from_png_bytes(colour, depth, &config.depth)
         .context("decoding the first frame")?;
-    config.intrinsics.width = first.width;
-    config.intrinsics.height = first.height;
+    config.intrinsics = at_frame_size(
+        &config.intrinsics,
+        (first.width, first.height),
+        &args.camera,
+    );
     Ok(config)
 }
 

@@ -27,8 +27,8 @@ use crate::frame_log::FrameLog;
 use crate::loop_log::LoopLog;
 use crate::mesh_file::{mesh_format, write_mesh_file};
 use crate::{
-    config_for, describe, evaluate, mesh_path, positive, voxel_size, CameraOverrides, TrackingArgs,
-    MAX_DT,
+    at_frame_size, config_for, describe, evaluate, mesh_path, positive, voxel_size,
+    CameraOverrides, TrackingArgs, MAX_DT,
 };
 
 /// Exit code of a run that finished with some frames skipped as unreadable.
@@ -214,8 +214,7 @@ fn start_pipeline(
 ) -> Result<Pipeline> {
     let mut config = config_for(sequence, &args.camera, &args.tracking)?;
     let (first, width, height) = first_readable(source, frames, &config)?;
-    config.intrinsics.width = width;
-    config.intrinsics.height = height;
+    config.intrinsics = at_frame_size(&config.intrinsics, (width, height), &args.camera);
     let mut slam = Pipeline::new(config)?;
     check_settings(source, sequence, first, args, &mut slam);
     if let Some(path) = &args.load {

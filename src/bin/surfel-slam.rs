@@ -25,6 +25,7 @@ use clap::parser::ValueSource;
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use surfel_slam::camera::Intrinsics;
 use surfel_slam::dataset::Sequence;
 use surfel_slam::fusion::FusionConfig;
 use surfel_slam::mesh::{MeshFormat, VOXEL_SIZE_RANGE_M};
@@ -475,6 +476,31 @@ pub(crate) fn describe(e: &anyhow::Error) -> String {
         }
     }
     out
+}
+
+/// The camera for frames of `width` x `height`: a preset's calibration
+/// scaled to them (a resized recording; another aspect ratio is warned
+/// about by the settings check), the values given on the command line as
+/// they are. A folder's own calibration is of its frames' size already.
+pub(crate) fn at_frame_size(
+    k: &Intrinsics,
+    (width, height): (usize, usize),
+    given: &CameraOverrides,
+) -> Intrinsics {
+    let scaled = k.for_image_size(width, height);
+    if (width, height) != (k.width, k.height) && k.same_aspect(width, height) {
+        eprintln!(
+            "note: the frames are {width}x{height}: the camera's {}x{} calibration is scaled to them",
+            k.width, k.height
+        );
+    }
+    Intrinsics {
+        fx: given.fx.unwrap_or(scaled.fx),
+        fy: given.fy.unwrap_or(scaled.fy),
+        cx: given.cx.unwrap_or(scaled.cx),
+        cy: given.cy.unwrap_or(scaled.cy),
+        ..scaled
+    }
 }
 
 /// The configuration for `sequence` with the command line's camera and

@@ -53,6 +53,16 @@ pub enum SettingsWarning {
         /// The preset of that layout.
         expected: CameraPreset,
     },
+    /// The frames have another aspect ratio than the layout preset's
+    /// calibrated image: its focal lengths are a guess for them.
+    OtherAspect {
+        /// The frames' size, pixels.
+        width: usize,
+        /// See `width`.
+        height: usize,
+        /// The preset, calibrated at its own size.
+        preset: CameraPreset,
+    },
     /// A camera value far from (or of the other sign than) the layout's preset.
     Value {
         /// `fx`, `fy` or `depth scale`.
@@ -100,6 +110,20 @@ impl fmt::Display for SettingsWarning {
                 layout.name(),
                 expected.name()
             ),
+            Self::OtherAspect {
+                width,
+                height,
+                preset,
+            } => {
+                let k = preset.intrinsics();
+                write!(
+                    f,
+                    "the frames are {width}x{height}, but {} is calibrated at {}x{}, another aspect ratio: its focal lengths are a guess for them; give the camera's own fx, fy, cx and cy",
+                    preset.name(),
+                    k.width,
+                    k.height
+                )
+            }
             Self::Value {
                 setting,
                 value,
@@ -162,7 +186,17 @@ pub fn layout_warnings(
             expected: detected,
         });
     }
-    let k = detected.intrinsics();
+    // The preset as it applies to frames of the configured size.
+    let (width, height) = (config.intrinsics.width, config.intrinsics.height);
+    let preset_k = detected.intrinsics();
+    let k = preset_k.for_image_size(width, height);
+    if !detected.calibrated_by_layout() && !preset_k.same_aspect(width, height) {
+        out.push(SettingsWarning::OtherAspect {
+            width,
+            height,
+            preset: detected,
+        });
+    }
     let d = detected.depth_settings();
     let mut values = vec![("depth scale", config.depth.scale, d.scale)];
     // A layout with its own calibration file: the preset's focal lengths

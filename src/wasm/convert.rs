@@ -173,7 +173,13 @@ pub fn strings_from_js(value: &JsValue, what: &str) -> Result<Vec<String>, Input
 /// `{name, fx, fy, cx, cy, width, height, depthScale, depthMin, depthMax}`.
 #[must_use]
 pub fn preset_to_js(preset: CameraPreset) -> JsValue {
-    let k = preset.intrinsics();
+    preset_at_size_to_js(preset, &preset.intrinsics())
+}
+
+/// A preset as `preset_to_js` gives it, with intrinsics `k` (its own,
+/// scaled to another image size).
+#[must_use]
+pub fn preset_at_size_to_js(preset: CameraPreset, k: &crate::Intrinsics) -> JsValue {
     let d = preset.depth_settings();
     object(&[
         ("name", preset.name().into()),

@@ -74,3 +74,21 @@ pub fn presets() -> js_sys::Array {
         .map(convert::preset_to_js)
         .collect()
 }
+
+/// Preset `name` for frames of the size of the depth image `depth_png`
+/// (its header alone is read): its intrinsics scaled to that size when the
+/// aspect ratio is the same (a resized recording), else its focal lengths
+/// kept and its principal point in its place (a guess, which
+/// `Slam.checkLayout` warns about); `width` and `height` are the image's.
+/// For layouts that state no calibration of their own (TUM, ICL-NUIM,
+/// 7-Scenes). Errors on an unknown preset or an unreadable header.
+#[wasm_bindgen(js_name = presetForDepthImage, unchecked_return_type = "Preset")]
+pub fn preset_for_depth_image(name: &str, depth_png: &[u8]) -> Result<JsValue, JsError> {
+    let preset = crate::CameraPreset::from_name(name)
+        .ok_or_else(|| JsError::new(&format!("unknown camera preset {name:?}")))?;
+    let (width, height) =
+        crate::frame::image_dimensions(depth_png, crate::frame::Channel::Depth, true)
+            .map_err(|e| JsError::new(&e.to_string()))?;
+    let k = preset.intrinsics().for_image_size(width, height);
+    Ok(convert::preset_at_size_to_js(preset, &k))
+}

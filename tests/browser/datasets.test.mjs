@@ -10,7 +10,7 @@ import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
 import { SHARED_DATA, startBrowser, openPage, waitForStatus, foreignRequests, saveScreenshot, skipUnlessReady } from './helpers.mjs';
-import { CLIP, makeRealSense, makeSevenScenes, makeStray, tempDir, tumSubset, writeArchive } from '../node/datasets.mjs';
+import { CLIP, makeRealSense, makeSevenScenes, makeStray, tempDir, tumHalved, tumSubset, writeArchive } from '../node/datasets.mjs';
 
 const FRAMES = 12;
 
@@ -160,6 +160,32 @@ test('a RealSense folder plays with the intrinsics of its JSON and file numbers 
     t.diagnostic(`${info}; ${status.framesProcessed} frames, ATE ${(ate.rmse * 100).toFixed(3)} cm against the clip's truth`);
     assert.equal(ate.pairs, FRAMES, 'one pose a file number');
     assert.ok(ate.rmse < 0.01, `ATE ${ate.rmse} m`);
+    assert.deepEqual(consoleErrors.filter((e) => /panicked|unreachable/.test(e)), []);
+  } finally {
+    await env.close();
+    fs.rmSync(tmp, { recursive: true, force: true });
+  }
+});
+
+test("a TUM folder resized to 320x240 plays with its preset's calibration scaled to it", { timeout: 300_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const tmp = tempDir('surfel-slam-page-tum-half-');
+  const dir = tumHalved(CLIP, FRAMES, path.join(tmp, 'rgbd_dataset_freiburg3_half'));
+  const env = await startBrowser();
+  try {
+    const { page, consoleErrors, status } = await playDropped(t, env, dir, 'tum');
+    saveScreenshot('tum-half-page.png', await page.screenshot());
+    t.diagnostic(`${status.framesProcessed} frames at 320x240, ATE ${(status.ate * 100).toFixed(3)} cm, errors ${JSON.stringify(status.errors)}`);
+    assert.equal(status.error, null, status.error);
+    // Before, the page built the run at the preset's 640x480 and refused every frame.
+    assert.equal(status.framesProcessed, FRAMES);
+    assert.equal(status.framesFailed, 0);
+    assert.equal(status.framesLost, 0);
+    assert.deepEqual(status.errors, []);
+    // Freiburg 3's 535.4, 539.2, 320.1, 247.6 halved, pixel centres kept.
+    const shown = await page.evaluate(() => ['fx', 'fy', 'cx', 'cy', 'depth-scale'].map((id) => Number(document.getElementById(id).value)));
+    assert.deepEqual(shown, [267.7, 269.6, 159.8, 123.55, 5000]);
+    assert.ok(Number.isFinite(status.ate) && status.ate < 0.02, `ATE ${status.ate} m`);
     assert.deepEqual(consoleErrors.filter((e) => /panicked|unreachable/.test(e)), []);
   } finally {
     await env.close();

@@ -122,6 +122,54 @@ export function tumSubset(src, frames, dst) {
   return dst;
 }
 
+/**
+ * A TUM folder `dst` of the first `frames` frames of `src` at half their
+ * size, as a recording resized by 2 is: colour the mean of each 2x2 block,
+ * depth the mean of a block's measured values when they lie within 2 % of
+ * each other (else none: an edge). Index files and ground truth as `src`'s.
+ */
+export function tumHalved(src, frames, dst) {
+  tumSubset(src, frames, dst);
+  for (const list of ['rgb.txt', 'depth.txt']) {
+    const rows = fs.readFileSync(path.join(dst, list), 'utf8').split('\n').filter((l) => l.trim() && !l.startsWith('#'));
+    for (const row of rows) {
+      const file = path.join(dst, row.split(/\s+/)[1]);
+      fs.writeFileSync(file, list === 'rgb.txt' ? colourHalved(file) : depthHalved(file));
+    }
+  }
+  return dst;
+}
+
+/** The 2x2 blocks of a `width` x `height` image: per block, the row-major indices of its four pixels. */
+function* blocks(width, height) {
+  for (let v = 0; v + 1 < height; v += 2) {
+    for (let u = 0; u + 1 < width; u += 2) yield [v * width + u, v * width + u + 1, (v + 1) * width + u, (v + 1) * width + u + 1];
+  }
+}
+
+function colourHalved(file) {
+  const png = decodePng(fs.readFileSync(file));
+  if (png.bitDepth !== 8 || png.channels !== 3) throw new Error(`${file}: expected 8-bit RGB`);
+  const out = new Uint8Array(3 * (png.width >> 1) * (png.height >> 1));
+  let o = 0;
+  for (const block of blocks(png.width, png.height)) {
+    for (let c = 0; c < 3; c++) out[o++] = Math.round(block.reduce((sum, i) => sum + png.data[3 * i + c], 0) / 4);
+  }
+  return encodeRgbPng(png.width >> 1, png.height >> 1, out);
+}
+
+function depthHalved(file) {
+  const png = decodeDepthPng(fs.readFileSync(file));
+  const out = new Uint16Array((png.width >> 1) * (png.height >> 1));
+  let o = 0;
+  for (const block of blocks(png.width, png.height)) {
+    const measured = block.map((i) => png.data[i]).filter((d) => d > 0);
+    const [lo, hi] = [Math.min(...measured), Math.max(...measured)];
+    out[o++] = measured.length && hi <= 1.02 * lo ? Math.round(measured.reduce((a, b) => a + b, 0) / measured.length) : 0;
+  }
+  return encodeDepthPng(png.width >> 1, png.height >> 1, out);
+}
+
 // ---- 16-bit PNG (depth) ---------------------------------------------------------
 
 /** Decodes a non-interlaced 16-bit greyscale PNG: { width, height, data: Uint16Array }. */

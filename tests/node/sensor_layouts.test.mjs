@@ -149,3 +149,26 @@ test('RealSense and Stray Scanner folders play end to end, with default settings
     fs.rmSync(tmp, { recursive: true, force: true });
   }
 });
+
+test("presetForDepthImage: a preset's calibration at the size of a layout's frames", { skip }, async () => {
+  const m = await loadPackage();
+  const { encodeDepthPng } = await import('./datasets.mjs');
+  const depth = (w, h) => encodeDepthPng(w, h, new Uint16Array(w * h).fill(5000));
+  const round = (p) => [p.fx, p.fy, p.cx, p.cy, p.width, p.height].map((v) => Math.round(v * 100) / 100);
+  // Its own size: the preset as presets() gives it.
+  const fr3 = m.presets().find((p) => p.name === 'tum-fr3');
+  assert.deepEqual(m.presetForDepthImage('tum-fr3', depth(640, 480)), fr3);
+  // Half the size: halved, pixel centres kept (as a pyramid level).
+  const half = m.presetForDepthImage('tum-fr3', depth(320, 240));
+  assert.deepEqual(round(half), [267.7, 269.6, 159.8, 123.55, 320, 240]);
+  assert.equal(half.depthScale, fr3.depthScale);
+  // Another aspect ratio: the focal lengths kept, and a Slam built on it warns that they are a guess.
+  const wide = m.presetForDepthImage('tum-fr3', depth(848, 480));
+  assert.deepEqual(round(wide).slice(0, 2), [535.4, 539.2]);
+  const { name, ...config } = wide;
+  const slam = new m.Slam({ preset: name, ...config });
+  assert.match(slam.checkLayout('tum-fr3').join('\n'), /848x480, but tum-fr3 is calibrated at 640x480, another aspect ratio/);
+  slam.free();
+  assert.throws(() => m.presetForDepthImage('tum-fr9', depth(320, 240)), /unknown camera preset "tum-fr9"/);
+  assert.throws(() => m.presetForDepthImage('tum-fr3', new Uint8Array([1, 2, 3])), /./);
+});
