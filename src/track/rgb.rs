@@ -364,25 +364,26 @@ fn select_references_into(
     let valid = |j: usize| prediction.normals[j] != Vec3::ZERO;
     let grey = &prediction.intensity;
     let threshold2 = threshold * threshold;
-    for v in (stride..h - stride).step_by(stride) {
-        for u in (stride..w - stride).step_by(stride) {
-            let j = v * w + u;
-            if !valid(j) {
-                continue;
-            }
-            let (l, r, t, b) = (j - stride, j + stride, j - stride * w, j + stride * w);
-            if !(valid(l) && valid(r) && valid(t) && valid(b)) {
-                continue;
-            }
-            let gx = 0.5 * (grey[r] - grey[l]);
-            let gy = 0.5 * (grey[b] - grey[t]);
-            if gx * gx + gy * gy < threshold2 {
-                continue;
-            }
-            out.push(ReferencePoint {
+    let row = |v: usize| {
+        (stride..w - stride)
+            .step_by(stride)
+            .map(move |u| v * w + u)
+            .filter(move |&j| {
+                let (l, r, t, b) = (j - stride, j + stride, j - stride * w, j + stride * w);
+                if !(valid(j) && valid(l) && valid(r) && valid(t) && valid(b)) {
+                    return false;
+                }
+                let gx = 0.5 * (grey[r] - grey[l]);
+                let gy = 0.5 * (grey[b] - grey[t]);
+                gx * gx + gy * gy >= threshold2
+            })
+            .map(|j| ReferencePoint {
                 point_in_world: prediction.vertices[j],
                 intensity: grey[j],
-            });
-        }
-    }
+            })
+    };
+    // Rows on the pool: the finest level's scan was a serial stretch of the
+    // joint tracker's frame; `par_extend` keeps the rows' order.
+    let rows: Vec<usize> = (stride..h - stride).step_by(stride).collect();
+    out.par_extend(rows.into_par_iter().flat_map_iter(row));
 }
