@@ -67,6 +67,11 @@ fn write_tum(dir: &Path, k: &Intrinsics, frames: usize) {
 /// `surfel-slam run DIR`: exit code, stderr, and the ATE of the trajectory
 /// written against the folder's ground truth (metres, pairs).
 fn run(dir: &Path) -> (i32, String, f64, usize) {
+    run_with(dir, &[])
+}
+
+/// As [`run`], with more options for `run`.
+fn run_with(dir: &Path, options: &[&str]) -> (i32, String, f64, usize) {
     let estimate = dir.join("estimate.txt");
     let out = Command::new(env!("CARGO_BIN_EXE_surfel-slam"))
         .arg("run")
@@ -74,6 +79,7 @@ fn run(dir: &Path) -> (i32, String, f64, usize) {
         .arg("--quiet")
         .arg("--trajectory")
         .arg(&estimate)
+        .args(options)
         .output()
         .expect("the CLI runs");
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
@@ -128,4 +134,13 @@ fn frames_of_another_aspect_ratio_run_with_a_warning_on_the_focal_lengths() {
         "{stderr}"
     );
     assert!(!stderr.contains("is scaled to them"), "{stderr}");
+
+    // The camera's own calibration given whole: nothing is a guess any more.
+    let own = [k.fx, k.fy, k.cx, k.cy].map(|v| (v + 0.25).to_string());
+    let options = [
+        "--fx", &own[0], "--fy", &own[1], "--cx", &own[2], "--cy", &own[3],
+    ];
+    let (_, stderr, _, pairs) = run_with(&dir, &options);
+    assert_eq!(pairs, 4);
+    assert!(!stderr.contains("another aspect ratio"), "{stderr}");
 }

@@ -351,6 +351,7 @@ const handlers = {
     settings.sequencePreset = msg.preset;
     const { width, height } = msg.config ?? {};
     settings.sequenceSize = Number.isInteger(width) && Number.isInteger(height) ? { width, height } : null;
+    settings.sequencePresets = msg.presets ?? null;
     const frameSize = settings.current();
     views.setAspect(frameSize.width, frameSize.height);
     setDisplayFrame(msg.config);

@@ -18,6 +18,9 @@ export class CameraSettings {
     // JSON at 848x480, a Stray scan's 256x192): a preset's size is its
     // camera's default, and the frames do not change size with the preset.
     this.sequenceSize = null;
+    // Every preset at the open sequence's frame size (presetsForImageSize):
+    // choosing one for a resized recording gives its calibration scaled.
+    this.sequencePresets = null;
     const apply = () => {
       // An empty field is refused, not filled from a preset behind the user's back.
       const empty = this.emptyFields();
@@ -56,10 +59,15 @@ export class CameraSettings {
     );
   }
 
+  /** Preset `name` at the open sequence's frame size (its own size without one), or undefined. */
+  preset(name) {
+    return (this.sequencePresets ?? this.presets).find((x) => x.name === name);
+  }
+
   /** Shows preset `name`'s intrinsics with `overrides` (a Slam config's fields) on top. */
   show(name, overrides = {}) {
     const el = this.el;
-    const p = this.presets.find((x) => x.name === name) ?? {};
+    const p = this.preset(name) ?? {};
     const v = { ...p, ...overrides };
     el.preset.value = this.presets.some((x) => x.name === name) ? name : 'custom';
     // Presets arrive as f32 values (535.4000244...): show them as published.
@@ -84,7 +92,7 @@ export class CameraSettings {
   /** The Slam config the fields make. */
   current() {
     const el = this.el;
-    const base = this.presets.find((x) => x.name === el.preset.value) ?? this.presets.find((x) => x.name === this.sequencePreset) ?? {};
+    const base = this.preset(el.preset.value) ?? this.preset(this.sequencePreset) ?? {};
     const num = (field, fallback) => (field.value === '' || !Number.isFinite(Number(field.value)) ? fallback : Number(field.value));
     return {
       preset: base.name,

@@ -43,7 +43,7 @@ export const ToWorker = Object.freeze({
 export const FromWorker = Object.freeze({
   /** {module: 'threads'|'simd', threads, presets, notes, frameReader}: the module is loaded. */
   READY: 'ready',
-  /** {name, kind, preset, config, frameCount, groundTruth, odometry, fileCount, warnings, colourNote, session?}: a sequence was opened (session: as SESSION_OPENED's, when it goes on from an opened session) (warnings: camera settings that do not fit its layout; colourNote: where a sequence without colour images gets its colour, or that it plays on depth alone and why, else null). */
+  /** {name, kind, preset, config, frameCount, groundTruth, odometry, fileCount, warnings, presets, colourNote, session?}: a sequence was opened (session: as SESSION_OPENED's, when it goes on from an opened session) (warnings: camera settings that do not fit its layout; presets: every preset at the sequence's frame size, or null; colourNote: where a sequence without colour images gets its colour, or that it plays on depth alone and why, else null). */
   SEQUENCE: 'sequence',
   /** {index, frameCount, timestamp, result, surfels, refresh, ate, wasmMemoryBytes, timing, input, flow, colourDecoder, videoError, done}: one frame processed (wasmMemoryBytes: the module's linear memory, its peak; colourDecoder: 'browser', 'wasm' or 'video'; videoError: why its colour could not be taken from the video). */
   FRAME: 'frame',

@@ -19,7 +19,7 @@
 // frame-feed.js (frames read ahead), surfel-copy.js (copies out of wasm
 // memory), worker-exports.js (downloads and the mesh view), worker-session.js
 // (session files: Save session, Open session; a sequence opened after a
-// session goes on in it).
+// session goes on in it), flow-overlay.js (the live view's optical flow).
 import { ToWorker, FromWorker } from './protocol.js';
 import { openSource } from './sequence.js';
 import { PREVIEW_WIDTH, PREVIEW_HEIGHT, pushedAsFiles } from './colour-decode.js';
@@ -30,6 +30,7 @@ import { sequenceCamera } from './sequence-camera.js';
 import { copyChanged, RollingRefresh, surfelBuffers } from './surfel-copy.js';
 import { coversWholeMap } from './surfel-buffers.js';
 import { answerExport } from './worker-exports.js';
+import { FlowOverlay } from './flow-overlay.js';
 import { sessionCameraConfig, sessionSnapshot } from './worker-session.js';
 
 let wasm = null;
@@ -53,6 +54,7 @@ let testBreak = false; // test hook: the next call into the module fails
 let testHang = false; // test hook: the next frame never returns
 const testHooks = new URL(self.location.href).searchParams.get('testHooks') === '1';
 const refresh = new RollingRefresh();
+const overlay = new FlowOverlay(); // optical-flow tracks for the live view
 // {localise, bytes}: the map is an opened session; the next sequence goes on
 // in it (continues mapping, or localises) instead of starting a new map.
 let session = null;
@@ -65,7 +67,7 @@ function fail(e) {
   failure = { message: errorText(e) };
   // The poisoned objects are dropped, not freed (free() would throw too).
   slam = null;
-  flow = null;
+  overlay.drop();
   post({ type: FromWorker.MODULE_FAILED, message: failure.message, frames: framesOk });
   reportState();
 }
@@ -132,24 +134,6 @@ async function initModule() {
   post({ type: FromWorker.READY, module: moduleKind, threads, presets, notes, frameReader: feed.inReader });
 }
 
-// Lucas-Kanade tracks between consecutive colour images, for the live
-// view's overlay; only computed while the page asks for them.
-let flow = null;
-let flowEnabled = false;
-
-function flowTracks(colour, decoded) {
-  if (!flowEnabled) return null;
-  try {
-    flow ??= new wasm.OpticalFlow(300);
-    const tracks = decoded ? flow.pushRgba(decoded.width, decoded.height, decoded.rgba) : flow.pushPng(colour);
-    const [width, height] = flow.imageSize;
-    return { tracks, width, height };
-  } catch (e) {
-    if (isModuleFailure(e)) throw e;
-    return null; // an overlay is not worth an error message
-  }
-}
-
 function createSlam(newConfig) {
   const fresh = new wasm.Slam(newConfig); // throws on a bad config: keep the old one
   if (slam) slam.free();
@@ -181,6 +165,17 @@ function layoutWarnings(layoutPreset) {
   } catch (e) {
     if (isModuleFailure(e)) throw e;
     return [];
+  }
+}
+
+/** Every preset for frames of the config's size (null when the module cannot say). */
+function presetsAtSize({ width, height }) {
+  if (typeof wasm?.presetsForImageSize !== 'function' || !Number.isInteger(width) || !Number.isInteger(height)) return null;
+  try {
+    return toPlain(wasm.presetsForImageSize(width, height));
+  } catch (e) {
+    if (isModuleFailure(e)) throw e;
+    return null;
   }
 }
 
@@ -276,6 +271,7 @@ async function load({ name, entries, autoplay, options }) {
     odometry,
     fileCount: paths.length,
     warnings: layoutWarnings(preset),
+    presets: presetsAtSize(newConfig),
     colourNote: colour.note,
     session: continued,
   });
@@ -467,7 +463,7 @@ async function processNext() {
     return;
   }
   if (next >= seq.frames.length) finishRecording(r);
-  const flowOverlay = colour ? flowTracks(colour, decoded) : null;
+  const flowOverlay = colour ? overlay.tracks(wasm, colour, decoded) : null;
   // The depth view's thumbnail at full 16-bit precision, without a second PNG decode.
   const depthPreview = { width: PREVIEW_WIDTH, height: PREVIEW_HEIGHT, metres: slam.depthPreview(PREVIEW_WIDTH, PREVIEW_HEIGHT) };
   const tPush = performance.now();
@@ -674,13 +670,8 @@ self.onmessage = async (event) => {
       break;
     }
     case ToWorker.FLOW:
-      flowEnabled = Boolean(msg.enabled);
-      if (!flowEnabled && flow) {
-        serial(() => {
-          flow?.free();
-          flow = null;
-        });
-      }
+      overlay.enabled = Boolean(msg.enabled);
+      if (!overlay.enabled) serial(() => overlay.free());
       break;
     case ToWorker.EXPORT_PLY:
     case ToWorker.EXPORT_TRAJECTORY:

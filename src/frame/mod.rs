@@ -108,7 +108,7 @@ pub const MAX_SIDE: usize = 16384;
 /// gigabytes (a wasm module has 4 GiB at most).
 pub const MAX_PIXELS: usize = 1 << 24;
 
-fn check_dimensions(width: usize, height: usize) -> Result<(), FrameError> {
+pub(crate) fn check_dimensions(width: usize, height: usize) -> Result<(), FrameError> {
     if width == 0
         || height == 0
         || width > MAX_SIDE

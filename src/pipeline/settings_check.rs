@@ -190,7 +190,12 @@ pub fn layout_warnings(
     let (width, height) = (config.intrinsics.width, config.intrinsics.height);
     let preset_k = detected.intrinsics();
     let k = preset_k.for_image_size(width, height);
-    if !detected.calibrated_by_layout() && !preset_k.same_aspect(width, height) {
+    // Once fx, fy, cx and cy are all the user's own, there is no guess to warn about.
+    let c = &config.intrinsics;
+    let guessed = [(c.fx, k.fx), (c.fy, k.fy), (c.cx, k.cx), (c.cy, k.cy)]
+        .iter()
+        .any(|(value, guess)| value == guess);
+    if !detected.calibrated_by_layout() && !preset_k.same_aspect(width, height) && guessed {
         out.push(SettingsWarning::OtherAspect {
             width,
             height,
@@ -356,5 +361,24 @@ mod tests {
         let w = layout_warnings(icl, icl, &config);
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(w[0].to_string().starts_with("fy = 480"), "{}", w[0]);
+    }
+
+    #[test]
+    fn another_aspect_warns_until_the_whole_calibration_is_given() {
+        let tum = CameraPreset::TumFr3;
+        let mut config = SlamConfig::from_preset(tum);
+        config.intrinsics = tum.intrinsics().for_image_size(848, 480);
+        let aspect = |config: &SlamConfig| {
+            layout_warnings(tum, tum, config)
+                .iter()
+                .any(|w| matches!(w, SettingsWarning::OtherAspect { .. }))
+        };
+        assert!(aspect(&config), "the guess in use");
+        config.intrinsics.fx = 600.0;
+        config.intrinsics.fy = 600.0;
+        config.intrinsics.cx = 424.0;
+        assert!(aspect(&config), "cy is still the guess");
+        config.intrinsics.cy = 240.0;
+        assert!(!aspect(&config), "all four given");
     }
 }

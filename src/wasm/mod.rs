@@ -75,6 +75,20 @@ pub fn presets() -> js_sys::Array {
         .collect()
 }
 
+/// Every preset as `presets()` gives it, for frames of `width` x `height`
+/// pixels: each one's intrinsics scaled as `presetForDepthImage` scales
+/// them (the page's preset list for an open sequence of that size). Errors
+/// on a size no frame can have.
+#[wasm_bindgen(js_name = presetsForImageSize, unchecked_return_type = "Preset[]")]
+pub fn presets_for_image_size(width: u32, height: u32) -> Result<js_sys::Array, JsError> {
+    let (width, height) = (width as usize, height as usize);
+    crate::frame::check_dimensions(width, height).map_err(|e| JsError::new(&e.to_string()))?;
+    Ok(crate::CameraPreset::ALL
+        .into_iter()
+        .map(|p| convert::preset_at_size_to_js(p, &p.intrinsics().for_image_size(width, height)))
+        .collect())
+}
+
 /// Preset `name` for frames of the size of the depth image `depth_png`
 /// (its header alone is read): its intrinsics scaled to that size when the
 /// aspect ratio is the same (a resized recording), else its focal lengths

@@ -186,6 +186,16 @@ test("a TUM folder resized to 320x240 plays with its preset's calibration scaled
     const shown = await page.evaluate(() => ['fx', 'fy', 'cx', 'cy', 'depth-scale'].map((id) => Number(document.getElementById(id).value)));
     assert.deepEqual(shown, [267.7, 269.6, 159.8, 123.55, 5000]);
     assert.ok(Number.isFinite(status.ate) && status.ate < 0.02, `ATE ${status.ate} m`);
+    // Another preset chosen in the panel comes at the frames' size too
+    // (Freiburg 1's 517.3, 516.5, 318.6, 255.3 halved), and the sequence
+    // plays again with it; before, the panel showed its 640x480 values.
+    await page.locator('#preset').selectOption('tum-fr1');
+    const fr1 = await page.evaluate(() => ['fx', 'fy', 'cx', 'cy'].map((id) => Number(document.getElementById(id).value)));
+    assert.deepEqual(fr1, [258.65, 258.25, 159.05, 127.4]);
+    await waitForStatus(page, (s) => s.playing || s.framesProcessed < FRAMES, { timeoutMs: 60_000 });
+    const again = await waitForStatus(page, (s) => s.done && !s.playing, { timeoutMs: 120_000 });
+    assert.equal(again.framesProcessed, FRAMES);
+    assert.equal(again.framesFailed, 0);
     assert.deepEqual(consoleErrors.filter((e) => /panicked|unreachable/.test(e)), []);
   } finally {
     await env.close();

@@ -171,4 +171,12 @@ test("presetForDepthImage: a preset's calibration at the size of a layout's fram
   slam.free();
   assert.throws(() => m.presetForDepthImage('tum-fr9', depth(320, 240)), /unknown camera preset "tum-fr9"/);
   assert.throws(() => m.presetForDepthImage('tum-fr3', new Uint8Array([1, 2, 3])), /./);
+  // Every preset at one size, each as presetForDepthImage gives it.
+  const sized = m.presetsForImageSize(320, 240);
+  assert.deepEqual(sized.map((p) => p.name), m.presets().map((p) => p.name));
+  for (const p of sized) assert.deepEqual(p, m.presetForDepthImage(p.name, depth(320, 240)));
+  // At a preset's own size, the preset as presets() gives it.
+  const own = m.presetsForImageSize(640, 480);
+  for (const p of m.presets().filter((q) => q.width === 640 && q.height === 480)) assert.deepEqual(own.find((q) => q.name === p.name), p);
+  assert.throws(() => m.presetsForImageSize(0, 240), /./);
 });
