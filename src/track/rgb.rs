@@ -384,6 +384,6 @@ fn select_references_into(
     };
     // Rows on the pool: the finest level's scan was a serial stretch of the
     // joint tracker's frame; `par_extend` keeps the rows' order.
-    let rows: Vec<usize> = (stride..h - stride).step_by(stride).collect();
-    out.par_extend(rows.into_par_iter().flat_map_iter(row));
+    let rows = (stride..h - stride).into_par_iter().step_by(stride);
+    out.par_extend(rows.flat_map_iter(row));
 }
