@@ -212,7 +212,7 @@ impl Pipeline {
         self.fuse(&origin, 0);
         // No velocity: the step from the anchored pose is not a motion.
         self.last_good = None;
-        self.predict(&origin, false);
+        self.predict(&origin, (false, f64::NAN));
         self.frame_index = now;
         self.anchored_last = Some(anchored);
     }

@@ -112,7 +112,7 @@ impl Pipeline {
         self.keep_for_sparse_and_ferns();
         let tracked = match loc.last_placed {
             Some(previous) => {
-                let tracked = self.track_or_recover(&previous, loc.velocity, 0);
+                let tracked = self.track_or_recover(&previous, (loc.velocity, f64::NAN), 0);
                 match tracked.verdict {
                     Verdict::Lost(_) => self.place_in_map(),
                     _ => tracked,

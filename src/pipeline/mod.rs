@@ -373,7 +373,7 @@ impl Pipeline {
         let t0 = now_ms();
         self.preprocess(frame);
         let t1 = now_ms();
-        let mut tracked = self.track();
+        let mut tracked = self.track(timestamp);
         self.dead_reckon(&mut tracked);
         self.restart_if_lost_long(&mut tracked);
         let as_tracked = tracked.pose;
@@ -395,7 +395,11 @@ impl Pipeline {
             // A held frame placed by the sparse estimate measured its held
             // directions by features; only one held at the guess did not.
             let at_guess = tracked.verdict == Verdict::Held && !tracked.checks.from_sparse;
-            self.predict(&tracked.pose, at_guess);
+            let interval_s = self
+                .trajectory
+                .last()
+                .map_or(f64::NAN, |&(before, _)| timestamp - before);
+            self.predict(&tracked.pose, (at_guess, interval_s));
         }
         let t4 = now_ms();
         self.count_verdict(tracked.verdict);
@@ -446,7 +450,7 @@ impl Pipeline {
     /// Stage `track`: the pose of the pyramid's frame against the model
     /// prediction, with its verdict ([`Pipeline::track_or_recover`]); the
     /// first frame of a map is the world frame.
-    fn track(&mut self) -> Tracked {
+    fn track(&mut self, timestamp: f64) -> Tracked {
         self.keep_for_sparse_and_ferns();
         if let Some(pose) = self.reseed_at.take() {
             return Tracked {
@@ -464,7 +468,15 @@ impl Pipeline {
                 checks: TrackingChecks::default(),
             },
             Some(previous) => {
-                self.track_or_recover(&previous, self.velocity, self.counts.lost_streak)
+                let interval_s = self
+                    .trajectory
+                    .last()
+                    .map_or(f64::NAN, |&(before, _)| timestamp - before);
+                self.track_or_recover(
+                    &previous,
+                    (self.velocity, interval_s),
+                    self.counts.lost_streak,
+                )
             }
         };
         let tracked = self.relocalise_if_lost(tracked);
@@ -523,10 +535,12 @@ impl Pipeline {
     /// frame just fused at `pose`: the model prediction, the photometric
     /// memory of this frame, the constant-velocity motion and the sparse
     /// estimator's reference.
-    fn predict(&mut self, pose: &DAffine3, held_at_guess: bool) {
+    fn predict(&mut self, pose: &DAffine3, (held_at_guess, interval_s): (bool, f64)) {
         self.render_prediction(pose, false);
         self.velocity = match (self.last_good, self.counts.lost_streak) {
-            (Some(before), 0) => Some(self.motion_since_measured(before, pose, held_at_guess)),
+            (Some(before), 0) => {
+                Some(self.motion_since_measured(before, pose, (held_at_guess, interval_s)))
+            }
             _ => None,
         };
         if !held_at_guess {

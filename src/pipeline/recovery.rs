@@ -9,7 +9,8 @@ use crate::preprocess::FramePyramid;
 use crate::se3;
 use crate::track::verify::{free_space_violation, TrackingChecks, VerifyConfig};
 use crate::track::{
-    track, track_holding, FreeDirections, LostReason, TrackResult, TrackerConfig, TrackerWorkspace,
+    track, track_with_prior, FreeDirections, LostReason, MotionPrior, TrackResult, TrackerConfig,
+    TrackerWorkspace,
 };
 use glam::DAffine3;
 
@@ -163,7 +164,7 @@ impl Pipeline {
     pub(super) fn track_or_recover(
         &mut self,
         previous: &DAffine3,
-        velocity: Option<DAffine3>,
+        (velocity, interval_s): (Option<DAffine3>, f64),
         lost_streak: u32,
     ) -> Tracked {
         let normal = &self.config.tracker;
@@ -173,7 +174,16 @@ impl Pipeline {
             Some(velocity) if verify.constant_velocity && !was_lost => *previous * velocity,
             _ => *previous,
         };
+        // A hand's motion since the last frame, only where the guess is one
+        // frame's constant-velocity motion.
+        let prior = match velocity {
+            Some(_) if verify.constant_velocity && !was_lost => {
+                MotionPrior::around(&guess, interval_s, &normal.motion_prior)
+            }
+            _ => None,
+        };
         let judge = Judge {
+            prior,
             pyramid: &self.pyramid,
             prediction: &self.prediction,
             normal,
@@ -231,6 +241,9 @@ struct Judge<'a> {
     /// Where the first attempt starts: `previous`, moved on by the
     /// constant-velocity prior when on.
     guess: DAffine3,
+    /// The hand's motion prior around `guess`, for a frame that follows
+    /// a placed one.
+    prior: Option<MotionPrior>,
     /// Frames lost in a row before this one.
     lost_streak: u32,
     /// The last poses as tracked, whose [`prior_misses`] scale a slide.
@@ -261,7 +274,14 @@ impl Judge<'_> {
         config: &TrackerConfig,
         workspace: &mut TrackerWorkspace,
     ) -> TrackResult {
-        track(self.pyramid, self.prediction, from, config, workspace)
+        track_with_prior(
+            self.pyramid,
+            self.prediction,
+            (from, None),
+            self.prior.as_ref(),
+            config,
+            workspace,
+        )
     }
 
     /// The verdict of a frame whose result is accepted.
@@ -365,10 +385,11 @@ impl Judge<'_> {
         }
         // The frame's free directions stay held at the estimate.
         let held = (first.result.held_directions > 0).then_some(&first.result.free);
-        let second = track_holding(
+        let second = track_with_prior(
             self.pyramid,
             self.prediction,
             (&sparse_pose, held),
+            self.prior.as_ref(),
             self.normal,
             workspace,
         );
@@ -446,10 +467,11 @@ impl Judge<'_> {
             return first.accept(self, checks);
         }
         let hold = first.result.free.with(&weak);
-        let second = track_holding(
+        let second = track_with_prior(
             self.pyramid,
             self.prediction,
             (&self.guess, Some(&hold)),
+            self.prior.as_ref(),
             self.normal,
             workspace,
         );
@@ -484,11 +506,25 @@ impl Judge<'_> {
         {
             return self.lost(first_result, checks);
         }
-        let wide = self.track(&self.previous, self.recovery, workspace);
+        // The wide search and its check judge the data alone: the guess is
+        // what the first attempt could not confirm.
+        let wide = track(
+            self.pyramid,
+            self.prediction,
+            &self.previous,
+            self.recovery,
+            workspace,
+        );
         if !wide.world_from_camera.is_finite() {
             return self.lost(first_result, checks);
         }
-        let check = self.track(&wide.world_from_camera, normal, workspace);
+        let check = track(
+            self.pyramid,
+            self.prediction,
+            &wide.world_from_camera,
+            normal,
+            workspace,
+        );
         // The camera may have moved for every frame lost since `previous`.
         let plausible = plausible_motion(
             normal,

@@ -34,11 +34,18 @@ impl Pipeline {
     ///   frame of the next held run (the synthetic room at 256x192 without
     ///   colour: 9.7 cm a frame, 230 cm in 22 frames): the camera centre's
     ///   mean per frame since the last measured frame.
+    ///
+    /// A held frame `interval_s` seconds after the one before also slows
+    /// the translation down, by `exp(-interval_s / tau)` with `tau` =
+    /// [`crate::track::MotionPriorConfig::held_velocity_decay_s`]: what a held run
+    /// carries along its free directions is a guess, and a hand comes to
+    /// rest rather than keeping a velocity for seconds (a phone walking up
+    /// to a bare wall held 118 frames at 8.5 cm a frame, 5 m/s).
     pub(super) fn motion_since_measured(
         &self,
         before: DAffine3,
         pose: &DAffine3,
-        held_at_guess: bool,
+        (held_at_guess, interval_s): (bool, f64),
     ) -> DAffine3 {
         let step = before.inverse() * *pose;
         let translation_world = match self.measured_frame {
@@ -46,11 +53,19 @@ impl Pipeline {
             Some(m) if !held_at_guess && m < self.placed_frame => self.mean_step_since(m, pose),
             _ => None,
         };
-        match translation_world {
+        let motion = match translation_world {
             Some(t) => {
                 DAffine3::from_mat3_translation(step.matrix3, before.matrix3.transpose() * t)
             }
             None => step,
+        };
+        let prior = &self.config.tracker.motion_prior;
+        let real_interval = interval_s > 0.0 && interval_s <= prior.max_interval_s;
+        if held_at_guess && prior.enabled && real_interval && prior.held_velocity_decay_s > 0.0 {
+            let keep = libm::exp(-interval_s / prior.held_velocity_decay_s);
+            DAffine3::from_mat3_translation(motion.matrix3, motion.translation * keep)
+        } else {
+            motion
         }
     }
 

@@ -113,6 +113,8 @@ pub(super) struct Problem<'a> {
     pub(super) prediction: &'a Prediction,
     /// Directions the step must not move along.
     pub(super) free: super::FreeDirections,
+    /// The hand's motion prior, added to each step's system.
+    pub(super) prior: Option<&'a super::MotionPrior>,
     pub(super) workspace: &'a TrackerWorkspace,
     pub(super) config: &'a TrackerConfig,
     /// Levenberg-Marquardt on (rgb and joint modes with `lm_damping`).

@@ -17,6 +17,7 @@ mod evaluate;
 pub mod free_directions;
 pub mod icp;
 pub mod model_points;
+pub mod motion_prior;
 pub mod rgb;
 pub mod verify;
 
@@ -30,6 +31,7 @@ pub use free_directions::FreeDirections;
 use free_directions::GridWorkspace;
 use glam::DAffine3;
 use icp::{icp_step, IcpGates};
+pub use motion_prior::{MotionPrior, MotionPriorConfig};
 use rgb::{PhotometricConfig, RgbWorkspace};
 use verify::VerifyConfig;
 
@@ -167,6 +169,10 @@ pub struct TrackerConfig {
     pub max_rotation_deg: f64,
     /// Independent checks of the result and the sparse start (used by the pipeline).
     pub verify: VerifyConfig,
+    /// The motion a hand can make between frames, as a prior in the solve
+    /// (see [`motion_prior`]; used by the pipeline between consecutive frames).
+    #[serde(default)]
+    pub motion_prior: MotionPriorConfig,
 }
 
 impl Default for TrackerConfig {
@@ -194,6 +200,7 @@ impl Default for TrackerConfig {
             max_translation_m: 0.30,
             max_rotation_deg: 30.0,
             verify: VerifyConfig::default(),
+            motion_prior: MotionPriorConfig::default(),
         }
     }
 }
@@ -350,7 +357,22 @@ pub fn track(
 pub fn track_holding(
     pyramid: &FramePyramid,
     prediction: &Prediction,
+    start: (&DAffine3, Option<&FreeDirections>),
+    config: &TrackerConfig,
+    workspace: &mut TrackerWorkspace,
+) -> TrackResult {
+    track_with_prior(pyramid, prediction, start, None, config, workspace)
+}
+
+/// [`track_holding`] with the hand's motion `prior` (see [`motion_prior`])
+/// added to every step's system: the estimate leaves the prior's guess only
+/// as far as the data pins it.
+#[must_use]
+pub fn track_with_prior(
+    pyramid: &FramePyramid,
+    prediction: &Prediction,
     (initial_world_from_camera, held): (&DAffine3, Option<&FreeDirections>),
+    prior: Option<&MotionPrior>,
     config: &TrackerConfig,
     workspace: &mut TrackerWorkspace,
 ) -> TrackResult {
@@ -389,6 +411,7 @@ pub fn track_holding(
         pyramid,
         prediction,
         free,
+        prior,
         workspace: &*workspace,
         config,
         // Plain ICP keeps undamped Gauss-Newton (its behaviour before the other modes existed).
@@ -451,7 +474,15 @@ fn track_level(
                 (*camera_from_world, current)
             }
         };
-        let Some(xi) = solve_step(&problem.free.held(&eval.system), damping) else {
+        let held = problem.free.held(&eval.system);
+        let system = match problem.prior {
+            Some(prior) => {
+                let pixels = (stride << level) as f64;
+                prior.added_to(held, &eval.system, &pose, pixels * pixels)
+            }
+            None => held,
+        };
+        let Some(xi) = solve_step(&system, damping) else {
             break;
         };
         *camera_from_world = se3::exp(&xi) * pose;
