@@ -513,7 +513,8 @@ const handlers = {
     setReference(YOUR_REFERENCE);
     renderer?.setGroundTruth(null);
     plots.setErrors(framePoses.map((f) => [f.index, sequence.groundTruth.error(f.timestamp, f.pose, display, (points) => renderer?.setGroundTruth(points))]));
-    status.positionErrorCm = plots.latestErrorCm();
+    const latest = plots.latestErrorCm();
+    status.positionErrorCm = latest === null ? null : Number(latest.toFixed(3));
     stats.onScore(msg.ate);
     const by = msg.byFrame ? 'by frame number' : 'by timestamp';
     sequence.line = `${sequence.line.replace(/; your reference .*$/, '')}; your reference ${msg.name}: ${msg.poses} poses, ${msg.matched} of ${sequence.frameCount} frames matched ${by}`;

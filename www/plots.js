@@ -1,10 +1,12 @@
 // Small live charts, plain canvas 2D: ms per frame by pipeline stage
 // (stacked), the map's surfel count, and the position error per frame
-// against the ground truth (when the sequence has one), with the verdict
+// against the reference (ground truth, the device's odometry or the user's
+// reference, when the sequence has one), with the verdict
 // strip under it (one colour per frame's verdict) and a tick at each frame
 // placed by relocalisation or closing a loop. x = frame number.
 // Redrawn at most a few times a second: on a machine without a GPU the
 // page's drawing shares the cores with the SLAM threads.
+import { inProse } from './scoring.js';
 
 export const STAGE_COLOURS = {
   decode: '#8ab4ff',
@@ -272,6 +274,7 @@ export class Plots {
    */
   setReference(name) {
     this.reference = name;
+    name = name && inProse(name);
     this.charts.error?.titles.splice(0, Infinity, ...(name ? [`drift from ${name} since frame 0 (not ATE)`, `drift from ${name}`, 'drift (not ATE)', 'drift'] : ['drift since frame 0', 'drift']));
     this.schedule(true);
   }

@@ -3,7 +3,7 @@
 // plot's description; and the "Reference…" button, which reads a reference
 // trajectory file for the worker (www/reference.js parses it there, as
 // "your reference"). Used by app.js.
-import { GROUND_TRUTH, ODOMETRY, YOUR_REFERENCE } from './scoring.js';
+import { GROUND_TRUTH, ODOMETRY, YOUR_REFERENCE, inProse } from './scoring.js';
 
 export { GROUND_TRUTH, ODOMETRY, YOUR_REFERENCE };
 
@@ -41,7 +41,7 @@ export class ReferenceView {
     this.name = name;
     this.el.name.textContent = name ?? '';
     this.el.check.hidden = !name;
-    const against = name ?? 'a reference (none for this sequence: "Reference…" loads one)';
+    const against = name ? inProse(name) : 'a reference (none for this sequence: "Reference…" loads one)';
     const text = `drift: distance from the estimated camera position to ${against}, aligned at the first frame (not ATE, which aligns the whole trajectory); under it each frame's verdict, with ticks at relocalised frames and loop closures`;
     this.el.plot.setAttribute('aria-label', text);
     this.el.plot.title = text;

@@ -12,6 +12,9 @@ export const GROUND_TRUTH = 'ground truth';
 export const ODOMETRY = "device's odometry";
 export const YOUR_REFERENCE = 'your reference';
 
+/** A reference's name in a sentence ("drift from the device's odometry"). */
+export const inProse = (name) => (name === ODOMETRY ? `the ${name}` : name);
+
 export class Scoring {
   constructor() {
     this.name = null; // GROUND_TRUTH, ODOMETRY, YOUR_REFERENCE or null

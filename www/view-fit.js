@@ -5,7 +5,7 @@
 
 const LOW = 0.02; // the bounds run from the 2nd ...
 const HIGH = 0.98; // ... to the 98th percentile of the points along each axis
-const MARGIN = 1.04; // a little room around the map
+const MARGIN = 1.08; // a little room around the map (the 2 % trimmed off each side included)
 
 function percentile(sorted, q) {
   if (sorted.length === 0) return NaN;
