@@ -23,6 +23,8 @@ import {
   skipUnlessReady,
   canvasPng,
   decodePng,
+  getStatus,
+  imageStats,
 } from './helpers.mjs';
 import { tumHalved } from '../node/datasets.mjs';
 
@@ -205,6 +207,11 @@ test('a sequence opened while the sample plays replaces its map at once; a refus
     const old = { splatsDrawn: s.splatsDrawn, surfels: s.surfels };
     await chooseFolder(page, small);
     const opened = await waitForStatus(page, (x) => x.sequence === 'rgbd_dataset_freiburg3_small', { timeoutMs: 60_000, intervalMs: 20 });
+    // The canvas as the new sequence opens: empty (unless its first frame was drawn in the meantime).
+    const openedCanvas = await canvasPng(page);
+    const stillEmpty = (await getStatus(page)).framesProcessed === 0;
+    saveScreenshot('switch-opened-canvas.png', openedCanvas);
+    const openedPixels = imageStats(decodePng(openedCanvas));
     const first = await waitForStatus(page, (x) => x.framesProcessed >= 1 && x.sequence === 'rgbd_dataset_freiburg3_small', { timeoutMs: 60_000, intervalMs: 20 });
     saveScreenshot('switch-after-page.png', await page.screenshot());
     await page.waitForTimeout(300); // the first frame's draw (throttled to one in 100 ms)
@@ -218,6 +225,8 @@ test('a sequence opened while the sample plays replaces its map at once; a refus
       assert.ok(x.splatsDrawn <= x.surfelSlots, `splats drawn ${x.splatsDrawn} <= the new map's ${x.surfelSlots} surfels (frame ${x.frameIndex})`);
     }
     assert.ok(drawn.splatsDrawn < old.splatsDrawn / 2, `later, the new map is drawn, not the old: ${drawn.splatsDrawn} splats`);
+    t.diagnostic(`canvas on opening: ${(openedPixels.nonBackground * 100).toFixed(1)} % non-background${stillEmpty ? '' : ' (a new frame was in already)'}`);
+    if (stillEmpty) assert.ok(openedPixels.nonBackground < 0.02, `the old map is off the canvas: ${(openedPixels.nonBackground * 100).toFixed(1)} % non-background`);
 
     // A whole run in which every frame is refused: said over the map.
     await chooseFolder(page, broken.dir);
