@@ -112,17 +112,9 @@ const referenceView = new ReferenceView(
       else act({ type: ToWorker.REFERENCE, name, text });
     },
     onError: reportError,
+    namedIn: [plots, stats, status],
   },
 );
-
-/** What the run is compared with (null: nothing): named on the checkbox, in the drift plot and the statistics. */
-function setReference(name) {
-  status.reference = name;
-  referenceView.show(name);
-  plots.setReference(name);
-  stats.reference = name;
-  stats.render();
-}
 const settings = new CameraSettings(
   {
     preset: $('preset'),
@@ -375,7 +367,7 @@ const handlers = {
     const odometry = msg.groundTruth.length ? [] : (msg.odometry ?? []);
     const groundTruth = new GroundTruthTrack(msg.groundTruth.length ? msg.groundTruth : odometry, msg.kind);
     sequence = { name: msg.name, kind: msg.kind, preset: msg.preset, frameCount: msg.frameCount, groundTruth };
-    setReference(msg.groundTruth.length ? GROUND_TRUTH : odometry.length ? ODOMETRY : null);
+    referenceView.show(msg.groundTruth.length ? GROUND_TRUTH : odometry.length ? ODOMETRY : null);
     status.userReference = null;
     settings.sequencePreset = msg.preset;
     const { width, height } = msg.config ?? {};
@@ -510,7 +502,7 @@ const handlers = {
     }
     // Drawn and scored in place of the sequence's own (a sequence opened next has its own again).
     sequence.groundTruth = new GroundTruthTrack(msg.rows, sequence.kind);
-    setReference(YOUR_REFERENCE);
+    referenceView.show(YOUR_REFERENCE);
     renderer?.setGroundTruth(null);
     plots.setErrors(framePoses.map((f) => [f.index, sequence.groundTruth.error(f.timestamp, f.pose, display, (points) => renderer?.setGroundTruth(points))]));
     const latest = plots.latestErrorCm();

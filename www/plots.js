@@ -55,12 +55,12 @@ class Chart {
   drawTitle(note, width) {
     const ctx = this.ctx;
     const texts = this.titles.map((t) => (note ? `${t} — ${note}` : t));
-    let text = null;
-    for (const px of [10, 9]) {
+    // Each title at 10 px, then at 9 px, before a shorter one.
+    const fits = (t, px) => {
       ctx.font = `${px}px system-ui, sans-serif`;
-      text = texts.find((t) => ctx.measureText(t).width <= width) ?? null;
-      if (text) break;
-    }
+      return ctx.measureText(t).width <= width;
+    };
+    let text = texts.find((t) => fits(t, 10) || fits(t, 9)) ?? null;
     if (!text) {
       text = texts[texts.length - 1];
       while (text.length > 1 && ctx.measureText(`${text}…`).width > width) text = text.slice(0, -1);

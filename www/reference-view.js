@@ -1,6 +1,7 @@
 // What the page calls the trajectory the run is compared with, wherever it
 // names it: the view's checkbox (hidden when there is none), the drift
-// plot's description; and the "Reference…" button, which reads a reference
+// plot (its title and description), the statistics' ATE line and
+// window.surfelSlamStatus.reference; and the "Reference…" button, which reads a reference
 // trajectory file for the worker (www/reference.js parses it there, as
 // "your reference"). Used by app.js.
 import { GROUND_TRUTH, ODOMETRY, YOUR_REFERENCE, inProse } from './scoring.js';
@@ -14,10 +15,12 @@ export class ReferenceView {
   /**
    * el: {name (the checkbox's text), check (its label), input (the file
    * input), plot (the drift plot's canvas)}; onFile(name, text) gets a file
-   * chosen, onError(message) a file that cannot be read.
+   * chosen, onError(message) a file that cannot be read; namedIn: [plots
+   * (www/plots.js), stats (www/stats.js), status (www/page-status.js)].
    */
-  constructor(el, { onFile, onError }) {
+  constructor(el, { onFile, onError, namedIn: [plots, stats, status] }) {
     this.el = el;
+    this.named = { plots, stats, status };
     this.name = null;
     el.input.addEventListener('change', async () => {
       const file = el.input.files?.[0];
@@ -39,6 +42,11 @@ export class ReferenceView {
   /** name: GROUND_TRUTH, ODOMETRY, YOUR_REFERENCE or null (none: the checkbox goes). */
   show(name) {
     this.name = name;
+    const { plots, stats, status } = this.named;
+    status.reference = name;
+    plots.setReference(name);
+    stats.reference = name;
+    stats.render();
     this.el.name.textContent = name ?? '';
     this.el.check.hidden = !name;
     const against = name ? inProse(name) : 'a reference (none for this sequence: "Reference…" loads one)';
