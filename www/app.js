@@ -5,12 +5,14 @@
 // (how the map and the ground truth are shown), downloads.js (saved files),
 // view-controls.js (the view options and the panel's scroll hint),
 // last-session.js (the last session kept in the browser and offered back),
-// page-status.js (window.surfelSlamStatus, what the page reports to its tests).
+// page-status.js (window.surfelSlamStatus, what the page reports to its tests),
+// reference-view.js (what the run is compared with, named; "Reference…"),
+// map-notice.js (a run that mapped nothing says so over the map).
 import { Renderer } from './renderer.js';
 import { InputViews } from './views.js';
 import { Stats } from './stats.js';
 import { Plots } from './plots.js';
-import { fromManifest, setupSequenceInput } from './sequence.js';
+import { fromManifest, readingLine, setupSequenceInput } from './sequence.js';
 import { ToWorker, FromWorker } from './protocol.js';
 import { MapMirror } from './map-mirror.js';
 import { CameraSettings } from './camera-settings.js';
@@ -20,6 +22,8 @@ import { wireViewControls } from './view-controls.js';
 import { MessageBoard } from './messages.js';
 import { LastSession } from './last-session.js';
 import { status } from './page-status.js';
+import { GROUND_TRUTH, ODOMETRY, ReferenceView, YOUR_REFERENCE } from './reference-view.js';
+import { MapNotice } from './map-notice.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -43,7 +47,8 @@ const ui = {
   sessionLocalise: $('session-localise'),
 };
 
-let sequence = null; // {name, kind, preset, frameCount, groundTruth: GroundTruthTrack}
+let sequence = null; // {name, kind, preset, frameCount, groundTruth: GroundTruthTrack (the reference drawn), line}
+let framePoses = []; // {index, timestamp, pose (display frame)} of this run's frames: the drift again for a reference loaded later
 let workerPlaying = false;
 let run = { first: 0, frames: 0 }; // wall clock of this playback run
 
@@ -95,7 +100,21 @@ try {
 const views = new InputViews($('colour-view'), $('depth-view'), $('depth-caption'));
 views.clear();
 const stats = new Stats($('stats'));
-const plots = new Plots({ timing: $('plot-timing'), surfels: $('plot-surfels'), error: $('plot-error') });
+const plots = new Plots({ timing: $('plot-timing'), surfels: $('plot-surfels'), error: $('plot-error') }, (charts) => {
+  status.driftPlotTitle = charts.error?.drawnTitle ?? null;
+});
+const mapNotice = new MapNotice($('map-notice'));
+const referenceView = new ReferenceView(
+  { name: $('reference-name'), check: $('show-gt-label'), input: $('reference-input'), plot: $('plot-error') },
+  {
+    onFile: (name, text) => {
+      if (!sequence) reportError(`${name}: open a sequence first: a reference is matched to its frames`);
+      else act({ type: ToWorker.REFERENCE, name, text });
+    },
+    onError: reportError,
+    namedIn: [plots, stats, status],
+  },
+);
 const settings = new CameraSettings(
   {
     preset: $('preset'),
@@ -269,6 +288,9 @@ function clearMap() {
   status.framesVideoFailed = 0;
   run = { first: 0, frames: 0 };
   sequence?.groundTruth.unanchor();
+  framePoses = [];
+  mapNotice.hide();
+  status.mapNotice = null;
   status.positionErrorCm = null;
   status.relocalisedFrames = [];
   status.trajectoryReplaced = 0;
@@ -276,7 +298,6 @@ function clearMap() {
   status.framesUnplaced = 0;
   mirror.clear();
   plots.reset();
-  plots.setGroundTruth(!!sequence?.groundTruth.length);
   status.plotFrames = 0;
   views.clear();
   // The mesh went with the map: back to the splats that will grow again.
@@ -345,9 +366,9 @@ const handlers = {
     // Without ground truth, the device's odometry (Stray Scanner) is the reference drawn, named as such.
     const odometry = msg.groundTruth.length ? [] : (msg.odometry ?? []);
     const groundTruth = new GroundTruthTrack(msg.groundTruth.length ? msg.groundTruth : odometry, msg.kind);
-    status.reference = msg.groundTruth.length ? 'ground truth' : odometry.length ? "device's odometry" : null;
-    $('reference-name').textContent = odometry.length ? "device's odometry" : 'ground truth';
     sequence = { name: msg.name, kind: msg.kind, preset: msg.preset, frameCount: msg.frameCount, groundTruth };
+    referenceView.show(msg.groundTruth.length ? GROUND_TRUTH : odometry.length ? ODOMETRY : null);
+    status.userReference = null;
     settings.sequencePreset = msg.preset;
     const { width, height } = msg.config ?? {};
     settings.sequenceSize = Number.isInteger(width) && Number.isInteger(height) ? { width, height } : null;
@@ -433,6 +454,7 @@ const handlers = {
     // Localising in an opened session: a frame not found in the map has no pose ('unplaced').
     const pose = msg.result.pose ? display.pose(msg.result.pose) : null;
     if (!pose) status.framesUnplaced++;
+    else framePoses.push({ index: msg.index, timestamp: msg.timestamp, pose });
     if (renderer) {
       renderer.updateSurfels(display.chunk(msg.surfels));
       if (msg.refresh) renderer.updateSurfels(display.chunk(msg.refresh));
@@ -468,8 +490,29 @@ const handlers = {
   },
 
   [FromWorker.LOAD_ERROR](msg) {
-    reportError(`cannot open the sequence: ${msg.message}${sequence ? ' (the current map is kept)' : ''}`);
+    const kept = !sequence ? '' : msg.resumed ? ` (the current map is kept; ${sequence.name} plays on)` : ' (the current map is kept)';
+    reportError(`cannot open the sequence: ${msg.message}${kept}`);
     openFailed(msg.name);
+  },
+
+  [FromWorker.REFERENCE](msg) {
+    if (msg.error || !sequence) {
+      reportError(`cannot use ${msg.name} as the reference: ${msg.error ?? 'no sequence is open'}`);
+      return;
+    }
+    // Drawn and scored in place of the sequence's own (a sequence opened next has its own again).
+    sequence.groundTruth = new GroundTruthTrack(msg.rows, sequence.kind);
+    referenceView.show(YOUR_REFERENCE);
+    renderer?.setGroundTruth(null);
+    plots.setErrors(framePoses.map((f) => [f.index, sequence.groundTruth.error(f.timestamp, f.pose, display, (points) => renderer?.setGroundTruth(points))]));
+    const latest = plots.latestErrorCm();
+    status.positionErrorCm = latest === null ? null : Number(latest.toFixed(3));
+    stats.onScore(msg.ate);
+    const by = msg.byFrame ? 'by frame number' : 'by timestamp';
+    sequence.line = `${sequence.line.replace(/; your reference .*$/, '')}; your reference ${msg.name}: ${msg.poses} poses, ${msg.matched} of ${sequence.frameCount} frames matched ${by}`;
+    ui.sequenceInfo.textContent = sequence.line;
+    status.userReference = { name: msg.name, format: msg.format, poses: msg.poses, matched: msg.matched };
+    syncStatus();
   },
 
   [FromWorker.CONFIG_ERROR](msg) {
@@ -491,6 +534,8 @@ const handlers = {
       stats.onIdle();
       run = { first: 0, frames: 0 };
     }
+    // A whole run that left nothing in the map says so over it.
+    if (msg.done && !msg.playing && sequence) status.mapNotice = mapNotice.afterRun({ ...status, name: sequence.name });
     setControls();
   },
 
@@ -624,7 +669,7 @@ function openFailed(name) {
 function loadSequence(seq, autoplay) {
   loading = { name: seq.name, entries: seq.entries };
   pendingReload = null;
-  ui.sequenceInfo.textContent = `reading ${seq.name} (${seq.entries.length} files)…`;
+  ui.sequenceInfo.textContent = readingLine(seq);
   ui.sequenceInfo.classList.remove('failed');
   send({ type: ToWorker.LOAD, name: seq.name, entries: seq.entries, autoplay, options: settings.pageOptions() });
 }

@@ -18,7 +18,7 @@ export const status = {
   crossOriginIsolated: self.crossOriginIsolated === true,
   module: null,
   error: null,
-  ate: null,
+  ate: null, // RMS after rigid alignment against `reference`, metres
   flowTracks: 0, // Lucas-Kanade tracks drawn on the last colour view (0 = overlay off)
   fps: 0, // frames per second over the last ~15 frames
   fpsAverage: 0, // frames per second from the first to the latest frame of this run
@@ -58,5 +58,9 @@ export const status = {
   colourNote: null, // how a scan without colour images gets its colour (a Stray Scanner scan's rgb.mp4), null: not such a scan
   framesColourFromVideo: 0, // frames whose colour came from the scan's rgb.mp4, since the last reset
   framesVideoFailed: 0, // frames whose rgb.mp4 picture could not be had, since the last reset
+  reference: null, // what the run is compared with: 'ground truth', "device's odometry", 'your reference' or null (www/scoring.js); ate is against it
+  userReference: null, // {name, format, poses, matched}: the reference file loaded with "Reference…" for this sequence (null: none)
+  driftPlotTitle: null, // {text, fits}: the drift plot's title as last drawn, and whether it fits the plot's width
+  mapNotice: null, // what the page says over the map after a whole run that mapped nothing (null: nothing to say)
 };
 window.surfelSlamStatus = status;

@@ -1,10 +1,12 @@
 // Small live charts, plain canvas 2D: ms per frame by pipeline stage
 // (stacked), the map's surfel count, and the position error per frame
-// against the ground truth (when the sequence has one), with the verdict
+// against the reference (ground truth, the device's odometry or the user's
+// reference, when the sequence has one), with the verdict
 // strip under it (one colour per frame's verdict) and a tick at each frame
 // placed by relocalisation or closing a loop. x = frame number.
 // Redrawn at most a few times a second: on a machine without a GPU the
 // page's drawing shares the cores with the SLAM threads.
+import { inProse } from './scoring.js';
 
 export const STAGE_COLOURS = {
   decode: '#8ab4ff',
@@ -34,13 +36,39 @@ const MARK_COLOURS = { relocalised: VERDICT_COLOURS.relocalised, loop: '#ff6ad5'
 const STAGES = Object.keys(STAGE_COLOURS);
 const REDRAW_MS = 250;
 
-/** One chart: a title, a y axis from 0 to a rounded maximum, filled or line series. */
+/**
+ * One chart: a title, a y axis from 0 to a rounded maximum, filled or line
+ * series. The title is the first of `titles` (longest first) that fits the
+ * chart's width with the note after it, at 10 px, else at 9 px, else the
+ * last cut short with an ellipsis.
+ */
 class Chart {
-  constructor(canvas, title, unit) {
+  constructor(canvas, titles, unit) {
     this.canvas = canvas;
-    this.title = title;
+    this.titles = [titles].flat();
     this.unit = unit;
     this.ctx = canvas.getContext('2d');
+    this.drawnTitle = null; // {text, fits}: the title as last drawn
+  }
+
+  /** Draws the title that fits in `width` (css pixels) and remembers it. */
+  drawTitle(note, width) {
+    const ctx = this.ctx;
+    const texts = this.titles.map((t) => (note ? `${t} — ${note}` : t));
+    // Each title at 10 px, then at 9 px, before a shorter one.
+    const fits = (t, px) => {
+      ctx.font = `${px}px system-ui, sans-serif`;
+      return ctx.measureText(t).width <= width;
+    };
+    let text = texts.find((t) => fits(t, 10) || fits(t, 9)) ?? null;
+    if (!text) {
+      text = texts[texts.length - 1];
+      while (text.length > 1 && ctx.measureText(`${text}…`).width > width) text = text.slice(0, -1);
+      text = `${text}…`;
+    }
+    ctx.fillText(text, 2, 1);
+    this.drawnTitle = { text, fits: ctx.measureText(text).width <= width };
+    ctx.font = '10px system-ui, sans-serif';
   }
 
   /**
@@ -82,7 +110,7 @@ class Chart {
     ctx.font = '10px system-ui, sans-serif';
     ctx.fillStyle = '#9aa3b2';
     ctx.textBaseline = 'top';
-    ctx.fillText(`${this.title}${note ? ` — ${note}` : ''}`, 2, 1);
+    this.drawTitle(note, w - 4);
     ctx.textAlign = 'right';
     ctx.fillText(formatTick(yMax), left - 3, top - 4);
     ctx.textBaseline = 'bottom';
@@ -192,16 +220,18 @@ class Series {
 }
 
 export class Plots {
-  /** canvases: {timing, surfels, error}; all optional. */
-  constructor(canvases) {
+  /** canvases: {timing, surfels, error}; all optional. onDrawn(charts): after each draw. */
+  constructor(canvases, onDrawn = null) {
     this.charts = {
       timing: canvases.timing ? new Chart(canvases.timing, 'ms per frame by stage', 'ms') : null,
       surfels: canvases.surfels ? new Chart(canvases.surfels, 'surfels in the map', '') : null,
-      error: canvases.error ? new Chart(canvases.error, 'drift since frame 0 (not ATE)', 'cm') : null,
+      error: canvases.error ? new Chart(canvases.error, 'drift', 'cm') : null,
     };
+    this.onDrawn = onDrawn;
     this.visible = true;
     this.timer = null;
     this.reset();
+    this.setReference(null);
   }
 
   reset() {
@@ -211,7 +241,6 @@ export class Plots {
     this.verdicts = new Uint8Array(256); // VERDICT_CODES index + 1 per frame, 0 = none
     this.marks = []; // {frame, kind}: relocalised frames and loop closures
     this.frames = 0;
-    this.hasGroundTruth = false;
     this.schedule(true);
   }
 
@@ -239,8 +268,21 @@ export class Plots {
     this.schedule();
   }
 
-  setGroundTruth(has) {
-    this.hasGroundTruth = has;
+  /**
+   * What the drift is measured from (GROUND_TRUTH, ODOMETRY, YOUR_REFERENCE
+   * of www/scoring.js), null: none. Named in the title where it fits.
+   */
+  setReference(name) {
+    this.reference = name;
+    name = name && inProse(name);
+    this.charts.error?.titles.splice(0, Infinity, ...(name ? [`drift from ${name} since frame 0 (not ATE)`, `drift from ${name}`, 'drift (not ATE)', 'drift'] : ['drift since frame 0', 'drift']));
+    this.schedule(true);
+  }
+
+  /** A reference loaded after frames ran: the drift of each is set again (errorsM: [[index, metres or null]]). */
+  setErrors(errorsM) {
+    this.error = new Series();
+    for (const [index, e] of errorsM) if (Number.isFinite(e)) this.error.set(index, e * 100);
     this.schedule(true);
   }
 
@@ -288,8 +330,9 @@ export class Plots {
     if (surfels) surfels.draw([{ colour: '#8ab4ff', values: this.surfels.values }], n);
     if (error) {
       const latest = this.latestErrorCm();
-      const note = !this.hasGroundTruth ? 'no ground truth' : latest === null ? '' : `${latest.toFixed(2)} cm`;
+      const note = !this.reference ? 'no reference' : latest === null ? '' : `${latest.toFixed(2)} cm`;
       error.draw([{ colour: '#3ee65a', values: this.error.values }], n, note, false, this.verdicts, this.marks);
     }
+    this.onDrawn?.(this.charts);
   }
 }

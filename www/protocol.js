@@ -19,6 +19,8 @@ export const ToWorker = Object.freeze({
   REPLAY: 'replay',
   /** {config} (a Slam config, docs/js-api.md): new Slam, back to frame 0, playing. */
   CONFIG: 'config',
+  /** {name, text}: a reference trajectory file (TUM or `frame, x, y, z, qx, qy, qz, qw` CSV, www/reference.js) to score the open sequence against, as "your reference"; answered by REFERENCE. */
+  REFERENCE: 'reference',
   /** {enabled}: compute Lucas-Kanade tracks for the colour view's overlay. */
   FLOW: 'flow',
   /** Map as binary PLY; answered by EXPORT. */
@@ -45,12 +47,14 @@ export const FromWorker = Object.freeze({
   READY: 'ready',
   /** {name, kind, preset, config, frameCount, groundTruth, odometry, fileCount, warnings, presets, colourNote, session?}: a sequence was opened (session: as SESSION_OPENED's, when it goes on from an opened session) (warnings: camera settings that do not fit its layout; presets: every preset at the sequence's frame size, or null; colourNote: where a sequence without colour images gets its colour, or that it plays on depth alone and why, else null). */
   SEQUENCE: 'sequence',
-  /** {index, frameCount, timestamp, result, surfels, refresh, ate, wasmMemoryBytes, timing, input, flow, colourDecoder, videoError, done}: one frame processed (wasmMemoryBytes: the module's linear memory, its peak; colourDecoder: 'browser', 'wasm' or 'video'; videoError: why its colour could not be taken from the video). */
+  /** {index, frameCount, timestamp, result, surfels, refresh, ate ({rmse, ..., pairs, against: 'ground truth' | "device's odometry" | 'your reference'} or null), wasmMemoryBytes, timing, input, flow, colourDecoder, videoError, done}: one frame processed (wasmMemoryBytes: the module's linear memory, its peak; colourDecoder: 'browser', 'wasm' or 'video'; videoError: why its colour could not be taken from the video). */
   FRAME: 'frame',
   /** {index, message, frameCount, input?}: one frame skipped (unreadable or refused). */
   FRAME_ERROR: 'frame-error',
-  /** {name, message}: a folder could not be opened (the current sequence stays). */
+  /** {name, message, resumed}: a folder could not be opened (the current sequence stays; resumed: it was playing and plays on). */
   LOAD_ERROR: 'load-error',
+  /** {name, format, byFrame, poses, matched, rows, ate} or {name, error}: the reference REFERENCE sent, read (rows: [t, tx, ty, tz, qx, qy, qz, qw] at the sequence's timestamps; matched: frames with a pose; ate: the run so far against it, or null) or refused (the old reference stays). */
+  REFERENCE: 'reference',
   /** {message}: camera settings refused (the current Slam stays). */
   CONFIG_ERROR: 'config-error',
   /** {playing, next, frameCount, done, surfels, failed}: playback state. */

@@ -13,6 +13,7 @@ import { MODES, SURFEL_VS, SURFEL_FS, LINE_VS, LINE_FS, compile } from './gl-sha
 import { SurfelBuffers } from './surfel-buffers.js';
 import { Lines, frustumPoints } from './gl-lines.js';
 import { installPointerControls } from './pointer-controls.js';
+import { fitPoints } from './view-fit.js';
 
 const FOVY = (55 * Math.PI) / 180;
 // About the surfels of a 200-frame sequence (teddy: 346 k; the 500-frame
@@ -111,6 +112,11 @@ export class Renderer {
     this.surfels.flush();
   }
 
+  /**
+   * Empties the scene and draws the empty view now: not at the next throttled
+   * draw, which a big old map's slow GPU time (4x gpuMs) would put seconds
+   * away, leaving the old map on screen into the new sequence.
+   */
   clear() {
     this.surfels.clear();
     this.trajectory.clear();
@@ -120,7 +126,12 @@ export class Renderer {
     this.currentPose = null;
     this.firstPose = null;
     this.viewInitialised = false;
-    this.dirty = true;
+    this.splatsDrawn = 0;
+    this.gpuMs = 0; // measured on the old map
+    this.lastDrawAt = 0;
+    this.dirty = false;
+    this.resize();
+    this.draw();
   }
 
   // ---- scene state --------------------------------------------------------------
@@ -182,14 +193,29 @@ export class Renderer {
     this.viewInitialised = true;
   }
 
-  /** Frames the whole map (orientation kept). */
+  /**
+   * Fills the view with the map, orientation kept: its robust bounds (2nd to
+   * 98th percentile of a sample of the surfels, so that a few stray ones far
+   * off do not shrink it) as seen along the current view direction.
+   */
   fitView() {
-    const b = this.bounds;
-    if (!b) return;
-    this.target = vec3.scale(vec3.add(b.min, b.max), 0.5);
-    this.distance = Math.max(0.5, (this.sceneSize() * 0.5) / Math.tan(FOVY / 2));
+    this.flushUploads();
+    const fit = fitPoints(this.surfels.samplePositions(), this.screenAxesAt(), FOVY, this.canvas.clientWidth / Math.max(1, this.canvas.clientHeight));
+    if (!fit) return;
+    this.target = fit.target;
+    this.distance = Math.max(0.05, fit.distance);
     this.follow = false;
+    this.onFollowChange?.(false);
     this.dirty = true;
+  }
+
+  /** The orbit view's axes (right, up, towards the eye), follow mode left out. */
+  screenAxesAt() {
+    const { right, up, back } = this.basis;
+    const cp = Math.cos(this.pitch);
+    const toEye = vec3.add(vec3.add(vec3.scale(right, cp * Math.sin(this.yaw)), vec3.scale(up, Math.sin(this.pitch))), vec3.scale(back, cp * Math.cos(this.yaw)));
+    const r = vec3.normalize(vec3.cross(this.basis.up, toEye));
+    return { right: r, up: vec3.cross(toEye, r), toEye };
   }
 
   resetView() {

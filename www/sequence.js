@@ -21,6 +21,25 @@ export const isArchiveName = (name) => /\.(zip|tar|tgz|tar\.gz)$/i.test(name);
 /** `teddy.tar.gz` -> `teddy`. */
 export const archiveStem = (name) => name.replace(/\.(zip|tar|tgz|tar\.gz)$/i, '');
 
+/** A size in bytes for people: 12 MB, 3.4 MB, 512 KB, 1.2 GB. */
+export function formatBytes(bytes) {
+  const mb = bytes / 2 ** 20;
+  if (mb >= 1024) return `${(mb / 1024).toFixed(1)} GB`;
+  if (mb >= 10) return `${mb.toFixed(0)} MB`;
+  if (mb >= 1) return `${mb.toFixed(1)} MB`;
+  return `${Math.max(1, Math.round(bytes / 1024))} KB`;
+}
+
+/** The sequence line while a sequence is opened: what is read (an archive by its file name and size, a folder by its file count). */
+export function readingLine({ name, entries }) {
+  if (entries.length === 1 && isArchiveName(entries[0][0])) {
+    const file = entries[0][1];
+    const size = typeof file === 'string' || !Number.isFinite(file?.size) ? '' : ` (${formatBytes(file.size)})`;
+    return `reading archive ${entries[0][0].split('/').pop()}${size}…`;
+  }
+  return `reading ${name} (${entries.length} file${entries.length === 1 ? '' : 's'})…`;
+}
+
 /** Lazily readable set of files keyed by relative path. */
 export class SequenceSource {
   /** @param {Array<[string, Blob|string]>} entries */

@@ -1,7 +1,9 @@
 // Live statistics: frames, tracked / held / lost, relocalised frames and loop
 // closures, surfels, frames per second, ms per pipeline stage (moving
-// average), ATE so far (computed in the worker with the wasm module's ateTum
-// when the sequence has ground truth).
+// average), ATE so far (computed in the worker with the wasm module's
+// Slam.ate against the sequence's reference: its ground truth, the device's
+// odometry, named as the CLI names it, or the user's reference).
+import { ODOMETRY, YOUR_REFERENCE } from './scoring.js';
 
 // 'loop' (loop closure) is reported by modules that have the stage; shown only then.
 const STAGES = ['decode', 'preprocess', 'track', 'fuse', 'loop', 'predict', 'total'];
@@ -20,6 +22,7 @@ function medians(keys, history) {
 export class Stats {
   constructor(table) {
     this.table = table;
+    this.reference = null; // what the ATE is against (www/scoring.js's names); a sequence's, kept over resets
     this.reset();
   }
 
@@ -88,10 +91,7 @@ export class Stats {
     this.changed = msg.surfels.end - msg.surfels.start;
     this.frameIndex = msg.index;
     this.frameCount = msg.frameCount;
-    if (msg.ate && Number.isFinite(msg.ate.rmse)) {
-      this.ate = msg.ate.rmse;
-      this.atePairs = msg.ate.pairs ?? 0;
-    }
+    this.onScore(msg.ate);
     const now = msg.timing?.doneAt ?? performance.now() + performance.timeOrigin;
     this.recent.push({ t: now, timings: r.timings ?? {}, wall: msg.timing?.wall ?? 0 });
     if (this.recent.length > WINDOW) this.recent.shift();
@@ -108,6 +108,26 @@ export class Stats {
     this.wallMs = this.recent.reduce((acc, f) => acc + f.wall, 0) / n;
     this.msPerFrame = this.stageMs.total || this.wallMs;
     this.render();
+  }
+
+  /** An ATE ({rmse, pairs, against}) from the worker, or null (none this frame). */
+  onScore(ate) {
+    if (!ate || !Number.isFinite(ate.rmse)) return;
+    this.ate = ate.rmse;
+    this.atePairs = ate.pairs ?? 0;
+    if (ate.against) this.reference = ate.against;
+    this.render();
+  }
+
+  /** The statistics' line of the ATE, named as the CLI names it: [label, value]. */
+  ateRow() {
+    const cm = this.ate === null ? '–' : `${(this.ate * 100).toFixed(this.ate < 0.01 ? 2 : 1)} cm`;
+    const pairs = this.ate === null ? '' : ` (${this.atePairs} poses)`;
+    if (this.reference === ODOMETRY) {
+      return ["difference from the device's odometry", this.ate === null ? '–' : `${cm} RMS (${this.atePairs} poses; odometry, not ground truth)`];
+    }
+    if (this.reference === YOUR_REFERENCE) return ['ATE rmse against your reference', `${cm}${pairs}`];
+    return ['ATE rmse', `${cm}${pairs}`];
   }
 
   /** A session was opened: its frames and surfels (the rest starts afresh). */
@@ -174,7 +194,7 @@ export class Stats {
       ['failed (errors)', `${this.framesFailed}`],
       ['last verdict', this.lastVerdict ? this.lastVerdict + (this.lastLostReason ? ` (${this.lastLostReason})` : '') : '–'],
       ['surfels', this.surfels.toLocaleString('en-US')],
-      ['ATE rmse', this.ate === null ? '–' : `${(this.ate * 100).toFixed(this.ate < 0.01 ? 2 : 1)} cm (${this.atePairs} poses)`],
+      this.ateRow(),
       ['fps', this.fps > 0 ? f1(this.fps) : '–'],
       ['ms / frame (wasm)', f1(this.stageMs.total)],
       ...STAGES.slice(0, -1)

@@ -128,6 +128,32 @@ export class SurfelBuffers {
     return Math.ceil(this.count / n);
   }
 
+  /**
+   * Up to `max` positions of the drawn surfels (every n-th, absorbed ones
+   * left out), read back from the GPU: what "Fit map" frames. Flush first.
+   */
+  samplePositions(max = 50_000) {
+    const gl = this.gl;
+    const count = this.count;
+    if (count === 0) return new Float32Array(0);
+    const positions = new Float32Array(3 * count);
+    const confidences = new Float32Array(count);
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.buffers.positions);
+    gl.getBufferSubData(gl.ARRAY_BUFFER, 0, positions);
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.buffers.confidences);
+    gl.getBufferSubData(gl.ARRAY_BUFFER, 0, confidences);
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
+    const step = Math.max(1, Math.ceil(count / max));
+    const out = new Float32Array(3 * Math.ceil(count / step));
+    let n = 0;
+    for (let i = 0; i < count; i += step) {
+      const [x, y, z] = [positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]];
+      if (!(confidences[i] >= 0) || !Number.isFinite(x + y + z)) continue;
+      out.set([x, y, z], 3 * n++);
+    }
+    return out.subarray(0, 3 * n);
+  }
+
   clear() {
     this.count = 0;
     this.pending = [];

@@ -19,7 +19,7 @@
 // frame-feed.js (frames read ahead), surfel-copy.js (copies out of wasm
 // memory), worker-exports.js (downloads and the mesh view), worker-session.js
 // (session files: Save session, Open session; a sequence opened after a
-// session goes on in it), flow-overlay.js (the live view's optical flow).
+// session goes on in it), flow-overlay.js (the live view's optical flow), scoring.js (the ATE).
 import { ToWorker, FromWorker } from './protocol.js';
 import { openSource } from './sequence.js';
 import { PREVIEW_WIDTH, PREVIEW_HEIGHT, pushedAsFiles } from './colour-decode.js';
@@ -32,13 +32,15 @@ import { coversWholeMap } from './surfel-buffers.js';
 import { answerExport } from './worker-exports.js';
 import { FlowOverlay } from './flow-overlay.js';
 import { sessionCameraConfig, sessionSnapshot } from './worker-session.js';
+import { Scoring } from './scoring.js';
 
 let wasm = null;
 let moduleKind = null;
 let threads = 1;
 let slam = null;
 let config = null; // Slam config currently in use
-let seq = null; // { id, name, kind, source, frames, gtTum, layoutPreset }
+let seq = null; // { id, name, kind, source, frames, layoutPreset, video }
+const scoring = new Scoring(); // what the run is scored against (seq's own reference, or the user's)
 let seqCounter = 0;
 let next = 0; // index of the next frame to process
 let playing = false;
@@ -206,16 +208,22 @@ function reportState(extra = {}) {
 
 // ---- loading a sequence -----------------------------------------------------
 
-async function load({ name, entries, autoplay, options }) {
+/** A sequence that cannot be opened: the one open stays, and plays on when it was playing (`resume`). */
+function refuse(name, message, resume) {
+  const resumed = resume && !!seq && !!slam && !failure && next < seq.frames.length;
+  post({ type: FromWorker.LOAD_ERROR, name, message, resumed });
+  if (resumed) play();
+  else reportState();
+}
+
+async function load({ name, entries, autoplay, options }, resume) {
   await freshModule();
   let source;
   try {
     source = await openSource(entries, async () => wasm); // a folder, or an archive read by wasm
   } catch (e) {
     if (isModuleFailure(e)) throw e;
-    post({ type: FromWorker.LOAD_ERROR, name, message: `${name}: ${errorText(e)}` });
-    reportState();
-    return;
+    return refuse(name, `${name}: ${errorText(e)}`, resume);
   }
   const paths = source.paths;
   let parsed;
@@ -230,9 +238,7 @@ async function load({ name, entries, autoplay, options }) {
   } catch (e) {
     // Keep the current sequence and map: only a good sequence replaces them.
     if (isModuleFailure(e)) throw e;
-    post({ type: FromWorker.LOAD_ERROR, name, message: `${name}: ${errorText(e)}` });
-    reportState();
-    return;
+    return refuse(name, `${name}: ${errorText(e)}`, resume);
   }
   // Before anything changes: the sequence playing goes on while the video is probed.
   const colour = await colourOfScan(parsed.frames, paths, source);
@@ -247,15 +253,13 @@ async function load({ name, entries, autoplay, options }) {
   } catch (e) {
     if (isModuleFailure(e)) throw e;
     const what = session ? `the opened session does not fit this sequence: ${errorText(e)}` : `camera preset ${preset}: ${errorText(e)}`;
-    post({ type: FromWorker.LOAD_ERROR, name, message: `${name}: ${what}` });
-    reportState();
-    return;
+    return refuse(name, `${name}: ${what}`, resume);
   }
   const groundTruth = (parsed.groundTruth || []).map((row) => Array.from(row));
   // The recording device's own trajectory (Stray Scanner: ARKit's), drawn like ground truth but named as what it is.
   const odometry = (parsed.odometry || []).map((row) => Array.from(row));
-  // Slam.ate reads the ground truth as TUM text ('' when there is none).
-  seq = { id: ++seqCounter, name, kind: parsed.kind, source, frames: parsed.frames, gtTum: parsed.groundTruthTum || null, layoutPreset: preset, video: colour.video };
+  seq = { id: ++seqCounter, name, kind: parsed.kind, source, frames: parsed.frames, layoutPreset: preset, video: colour.video };
+  scoring.setSequence(parsed);
   // The sequence a session was saved from (its download is <sequence>.slam)
   // continues at the frame after the session's last; another starts at its first.
   if (continued && !session.localise && sessionStem(session.name) === name) next = Math.min(slam.frames, seq.frames.length);
@@ -483,17 +487,8 @@ async function processNext() {
   loopClosures = closures;
   const tCopy = performance.now();
 
-  let ate = null;
   const last = next >= seq.frames.length;
-  const every = seq.frames.length > 200 ? 10 : 1;
-  if (seq.gtTum && (framesOk % every === 0 || last)) {
-    try {
-      ate = toPlain(slam.ate(seq.gtTum));
-    } catch (e) {
-      if (isModuleFailure(e)) throw e;
-      ate = null; // too few associated poses yet
-    }
-  }
+  const ate = scoring.afterFrame(slam, framesOk, seq.frames.length, last);
   const tAte = performance.now();
   post(
     {
@@ -613,9 +608,14 @@ self.onmessage = async (event) => {
     return;
   }
   switch (msg.type) {
-    case ToWorker.LOAD:
+    case ToWorker.LOAD: {
+      const resume = playing; // a refused sequence lets the open one play on
       playing = false;
-      serial(() => load(msg));
+      serial(() => load(msg, resume));
+      break;
+    }
+    case ToWorker.REFERENCE:
+      serial(() => post({ type: FromWorker.REFERENCE, ...scoring.loadUser(msg, seq, slam) }));
       break;
     case ToWorker.PLAY:
       serial(async () => {

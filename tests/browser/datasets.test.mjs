@@ -2,14 +2,17 @@
 // read in place by the wasm ArchiveReader), a 7-Scenes folder (ground truth
 // from its per-frame pose files: ATE and the ground-truth path shown), a
 // RealSense recording as Open3D's recorder writes it (the trajectory
-// downloaded and scored against the clip's truth), a Stray Scanner export (256x192 depth only, confidence images), and a
+// downloaded and scored against the clip's truth; the same truth loaded as
+// the user's reference, TUM and CSV: reference-loaded-page.png), a Stray
+// Scanner export (256x192 depth only, confidence images; the RMS difference
+// from its odometry, named as the CLI names it), and a
 // half-copied folder (a missing image skips its frame, by name). All built
 // from the bundled clip, so no ../shared is needed.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
-import { SHARED_DATA, startBrowser, openPage, waitForStatus, foreignRequests, saveScreenshot, skipUnlessReady } from './helpers.mjs';
+import { SHARED_DATA, startBrowser, openPage, getStatus, waitForStatus, foreignRequests, saveScreenshot, skipUnlessReady } from './helpers.mjs';
 import { CLIP, makeRealSense, makeSevenScenes, makeStray, tempDir, tumHalved, tumSubset, writeArchive } from '../node/datasets.mjs';
 
 const FRAMES = 12;
@@ -160,6 +163,43 @@ test('a RealSense folder plays with the intrinsics of its JSON and file numbers 
     t.diagnostic(`${info}; ${status.framesProcessed} frames, ATE ${(ate.rmse * 100).toFixed(3)} cm against the clip's truth`);
     assert.equal(ate.pairs, FRAMES, 'one pose a file number');
     assert.ok(ate.rmse < 0.01, `ATE ${ate.rmse} m`);
+    // No reference of its own: none named (not "ground truth"), the drift plot says so in its width.
+    assert.equal(status.reference, null);
+    assert.ok(!(await page.locator('#show-gt-label').isVisible()), 'no reference checkbox without a reference');
+    assert.equal(status.driftPlotTitle?.fits, true, JSON.stringify(status.driftPlotTitle));
+    assert.match(status.driftPlotTitle.text, /no reference/);
+    // "Reference…": the same truth as the user's own file, TUM by timestamp, then CSV by frame number.
+    const tumFile = path.join(tmp, 'tracker.txt');
+    fs.writeFileSync(tumFile, `# t tx ty tz qx qy qz qw\n${truthTum}`);
+    await page.locator('#reference-input').setInputFiles(tumFile);
+    const scored = await waitForStatus(page, (s) => s.userReference?.name === 'tracker.txt' && Number.isFinite(s.ate), { timeoutMs: 30_000 });
+    await page.waitForTimeout(400); // the plot's redraw
+    saveScreenshot('reference-loaded-page.png', await page.screenshot());
+    const table = await page.locator('#stats').textContent();
+    const line = await page.locator('#sequence-info').textContent();
+    const title = (await getStatus(page)).driftPlotTitle;
+    t.diagnostic(`your reference: ATE ${(scored.ate * 100).toFixed(3)} cm, drift ${scored.positionErrorCm} cm; ${line}; plot: ${title.text}`);
+    assert.equal(scored.reference, 'your reference');
+    assert.equal(await page.locator('#reference-name').textContent(), 'your reference');
+    assert.ok(await page.locator('#show-gt-label').isVisible());
+    assert.ok(Math.abs(scored.ate - ate.rmse) < 1e-6, `the page's ATE ${scored.ate} is the truth's ${ate.rmse}`);
+    assert.match(table, /ATE rmse against your reference\s*[\d.]+ cm \(12 poses\)/);
+    assert.match(line, /your reference tracker\.txt: 12 poses, 12 of 12 frames matched by timestamp/);
+    assert.ok(Number.isFinite(scored.positionErrorCm) && scored.positionErrorCm < 2, `drift from it over the frames run: ${scored.positionErrorCm} cm`);
+    assert.ok(title.fits && /drift/.test(title.text) && /cm/.test(title.text), JSON.stringify(title));
+    const csvFile = path.join(tmp, 'tracker.csv');
+    const rows = truthTum.trim().split('\n').map((l) => l.trim().split(/\s+/).join(', '));
+    fs.writeFileSync(csvFile, ['frame, x, y, z, qx, qy, qz, qw', ...rows].join('\n'));
+    await page.locator('#reference-input').setInputFiles(csvFile);
+    const byFrame = await waitForStatus(page, (s) => s.userReference?.name === 'tracker.csv', { timeoutMs: 30_000 });
+    assert.ok(Math.abs(byFrame.ate - ate.rmse) < 1e-6, `by frame number: ${byFrame.ate}`);
+    // A file that matches no frame is refused, by name; the reference stays.
+    const far = path.join(tmp, 'elsewhere.txt');
+    fs.writeFileSync(far, '1000 0 0 0 0 0 0 1\n1001 0 0 0 0 0 0 1\n');
+    await page.locator('#reference-input').setInputFiles(far);
+    const refused = await waitForStatus(page, (s) => /elsewhere\.txt/.test(s.error ?? ''), { timeoutMs: 30_000 });
+    assert.match(refused.error, /none of its 2 poses falls on a frame/);
+    assert.equal(refused.userReference.name, 'tracker.csv');
     assert.deepEqual(consoleErrors.filter((e) => /panicked|unreachable/.test(e)), []);
   } finally {
     await env.close();
@@ -253,6 +293,12 @@ test('a Stray Scanner folder plays on depth alone, its low-confidence depth drop
     assert.equal(status.reference, "device's odometry");
     assert.equal(await page.locator('#reference-name').textContent(), "device's odometry");
     assert.ok(Number.isFinite(status.positionErrorCm) && status.positionErrorCm < 2, `${status.positionErrorCm} cm from the odometry`);
+    // The overall figure, named as the CLI's summary names it.
+    const table = await page.locator('#stats').textContent();
+    t.diagnostic(`stats: ${table.match(/difference from the device's odometry[^a-z]*/)?.[0]}; plot: ${status.driftPlotTitle?.text}`);
+    assert.ok(Number.isFinite(status.ate) && status.ate < 0.02, `RMS from the odometry ${status.ate} m`);
+    assert.match(table, /difference from the device's odometry\s*[\d.]+ cm RMS \(12 poses; odometry, not ground truth\)/);
+    assert.equal(status.driftPlotTitle?.fits, true, JSON.stringify(status.driftPlotTitle));
     // The native reading of the same folder, surfel for surfel: the same
     // decode (confidence 0 dropped, grey colour) and the same pipeline.
     const fresh = tempDir('surfel-slam-page-stray-copy-');

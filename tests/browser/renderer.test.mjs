@@ -123,3 +123,81 @@ test('while SLAM runs the map is drawn within the splat budget, covering the sam
     await env.close();
   }
 });
+
+/** Red pixels of the renderer's canvas: their count and bounding box as fractions of the canvas. */
+async function redExtent(page) {
+  return page.evaluate(() => {
+    const { gl, canvas } = window.testRenderer;
+    const { width, height } = canvas;
+    const pixels = new Uint8Array(width * height * 4);
+    gl.readPixels(0, 0, width, height, gl.RGBA, gl.UNSIGNED_BYTE, pixels);
+    let red = 0, minX = width, maxX = -1, minY = height, maxY = -1;
+    for (let i = 0; i < pixels.length; i += 4) {
+      if (!(pixels[i] > 150 && pixels[i + 1] < 80)) continue;
+      red++;
+      const [x, y] = [(i / 4) % width, Math.floor(i / 4 / width)];
+      [minX, maxX, minY, maxY] = [Math.min(minX, x), Math.max(maxX, x), Math.min(minY, y), Math.max(maxY, y)];
+    }
+    return { red, width: red ? (maxX - minX + 1) / width : 0, height: red ? (maxY - minY + 1) / height : 0 };
+  });
+}
+
+test('Fit map fills the view with the map, stray surfels far off left out; clear() empties the view at once', { timeout: 120_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const env = await startBrowser();
+  try {
+    const { page, errors } = await openModulePage(env);
+    await page.evaluate(async () => {
+      const { Renderer } = await import('/renderer.js');
+      const canvas = document.createElement('canvas');
+      canvas.style.width = '240px';
+      canvas.style.height = '160px';
+      document.body.append(canvas);
+      const renderer = new Renderer(canvas);
+      // A 1 m x 0.5 m red wall 2 m in front of the first camera (5 mm apart), and 20 stray surfels 40 m off.
+      const wall = [];
+      for (let i = 0; i < 200; i++) for (let j = 0; j < 100; j++) wall.push(-0.5 + i * 0.005, -0.25 + j * 0.005, 2);
+      for (let k = 0; k < 20; k++) wall.push(40, -30, 45);
+      const n = wall.length / 3;
+      renderer.updateSurfels({
+        count: n, start: 0, end: n,
+        positions: new Float32Array(wall),
+        normals: new Float32Array(3 * n).map((_, j) => (j % 3 === 2 ? -1 : 0)),
+        colours: new Uint8Array(4 * n).map((_, j) => (j % 4 === 0 || j % 4 === 3 ? 255 : 0)),
+        radii: new Float32Array(n).fill(0.004),
+        confidences: new Float32Array(n).fill(10),
+      });
+      renderer.setCameraPose(new Float64Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]));
+      renderer.resize();
+      renderer.flushUploads();
+      window.testRenderer = renderer;
+    });
+    const draw = () => page.evaluate(() => window.testRenderer.draw());
+    await draw();
+    const before = await redExtent(page);
+    await page.evaluate(() => window.testRenderer.fitView());
+    await draw();
+    const fitted = await redExtent(page);
+    t.diagnostic(`wall before Fit map: ${JSON.stringify(before)}; after: ${JSON.stringify(fitted)}`);
+    // The wall's 2:1 in a 3:2 view: its width fills the view's.
+    assert.ok(fitted.width > 0.85, `the map fills the view's width: ${fitted.width.toFixed(2)}`);
+    assert.ok(fitted.height > 0.35 && fitted.height < 1, `and keeps its shape: height ${fitted.height.toFixed(2)}`);
+
+    // A new sequence: the old map goes from the view at once, even while a
+    // slow GPU (4 x 5 s) would hold the next throttled draw back.
+    const cleared = await page.evaluate(() => {
+      const r = window.testRenderer;
+      r.throttle = true;
+      r.gpuMs = 5000;
+      r.lastDrawAt = performance.now();
+      r.clear();
+      return { splatsDrawn: r.splatsDrawn, count: r.count };
+    });
+    const after = await redExtent(page);
+    assert.deepEqual(cleared, { splatsDrawn: 0, count: 0 });
+    assert.equal(after.red, 0, 'nothing of the old map is left on the canvas');
+    assert.deepEqual(errors, []);
+  } finally {
+    await env.close();
+  }
+});

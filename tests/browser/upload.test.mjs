@@ -1,7 +1,10 @@
 // Folder upload through the file input, and the error cases: a sequence with
 // an 8-bit depth PNG and a corrupt colour PNG, then a folder that is no
 // dataset at all. The page must say what is wrong (naming the file), keep the
-// map, and stay alive.
+// map, and stay alive. Then switching sequences mid-play (issue 84): the old
+// map leaves the view at once (screenshot switch-after-page.png), a refused
+// folder lets the sample play on, and a run whose every frame is refused
+// says so over the map (nothing-tracked-page.png).
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
@@ -20,7 +23,10 @@ import {
   skipUnlessReady,
   canvasPng,
   decodePng,
+  getStatus,
+  imageStats,
 } from './helpers.mjs';
+import { tumHalved } from '../node/datasets.mjs';
 
 const ICL = path.join(SHARED_DATA, 'icl_office_kt0');
 const ICL_FRAMES = 15;
@@ -170,5 +176,75 @@ test('bad frames and bad folders give a clear message and keep the map', { timeo
     await env.close();
     fs.rmSync(clip.parent, { recursive: true, force: true });
     fs.rmSync(notADataset, { recursive: true, force: true });
+  }
+});
+
+test('a sequence opened while the sample plays replaces its map at once; a refused folder lets it play on; a run that maps nothing says so', { timeout: 300_000 }, async (t) => {
+  if (skipUnlessReady(t)) return;
+  const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'surfel-slam-switch-'));
+  // At half size: its first frames hold far fewer surfels than the sample's map when it is opened.
+  const small = tumHalved(path.join(REPO, 'www/sample/tum_fr3_teddy_clip'), 6, path.join(tmp, 'rgbd_dataset_freiburg3_small'));
+  const notADataset = path.join(tmp, 'holiday_photos');
+  fs.mkdirSync(notADataset);
+  fs.writeFileSync(path.join(notADataset, 'notes.txt'), 'nothing to see\n');
+  // Every depth image 8-bit: every frame refused.
+  const broken = makeTumClip(path.join(REPO, 'www/sample/tum_fr3_teddy_clip'), 3, 'rgbd_dataset_freiburg3_all_refused');
+  for (const d of broken.depth) fs.writeFileSync(path.join(broken.dir, d), encodeGreyPng(640, 480, Buffer.alloc(640 * 480, 77)));
+  const env = await startBrowser();
+  try {
+    const { page } = await openPage(env, '/');
+    let s = await waitForStatus(page, (x) => x.sequence === 'tum_fr3_teddy_clip' && x.framesProcessed >= 12 && x.playing, { timeoutMs: 180_000, log: (m) => t.diagnostic(m) });
+    // A folder that is no dataset, mid-run: said, and the sample plays on.
+    await chooseFolder(page, notADataset);
+    s = await waitForStatus(page, (x) => /holiday_photos/.test(x.error ?? ''), { timeoutMs: 30_000 });
+    const at = s.framesProcessed;
+    assert.match(s.error, /tum_fr3_teddy_clip plays on/, s.error);
+    s = await waitForStatus(page, (x) => x.playing && x.framesProcessed > at + 2, { timeoutMs: 60_000 });
+    assert.ok(s.framesProcessed > at + 2, `the sample went on after the refusal: ${at} -> ${s.framesProcessed} frames`);
+
+    // The next folder, while the sample plays with its map drawn.
+    s = await waitForStatus(page, (x) => x.surfels > 200_000 || x.done, { timeoutMs: 120_000 });
+    const old = { splatsDrawn: s.splatsDrawn, surfels: s.surfels };
+    await chooseFolder(page, small);
+    const opened = await waitForStatus(page, (x) => x.sequence === 'rgbd_dataset_freiburg3_small', { timeoutMs: 60_000, intervalMs: 20 });
+    // The canvas as the new sequence opens: empty (unless its first frame was drawn in the meantime).
+    const openedCanvas = await canvasPng(page);
+    const stillEmpty = (await getStatus(page)).framesProcessed === 0;
+    saveScreenshot('switch-opened-canvas.png', openedCanvas);
+    const openedPixels = imageStats(decodePng(openedCanvas));
+    const first = await waitForStatus(page, (x) => x.framesProcessed >= 1 && x.sequence === 'rgbd_dataset_freiburg3_small', { timeoutMs: 60_000, intervalMs: 20 });
+    saveScreenshot('switch-after-page.png', await page.screenshot());
+    await page.waitForTimeout(300); // the first frame's draw (throttled to one in 100 ms)
+    const drawn = await waitForStatus(page, (x) => x.framesProcessed >= 1, { timeoutMs: 5_000 });
+    t.diagnostic(
+      `sample's map ${old.surfels} surfels (${old.splatsDrawn} splats); on opening: ${opened.splatsDrawn} splats for ${opened.surfelSlots} surfels; ` +
+        `first frame: ${first.splatsDrawn} splats for ${first.surfelSlots} surfels; later: ${drawn.splatsDrawn} for ${drawn.surfelSlots}`,
+    );
+    assert.ok(old.splatsDrawn > 2 * first.surfelSlots, `the sample's map was drawn (${old.splatsDrawn} splats), more than the new one's first frame has`);
+    for (const x of [opened, first]) {
+      assert.ok(x.splatsDrawn <= x.surfelSlots, `splats drawn ${x.splatsDrawn} <= the new map's ${x.surfelSlots} surfels (frame ${x.frameIndex})`);
+    }
+    assert.ok(drawn.splatsDrawn < old.splatsDrawn / 2, `later, the new map is drawn, not the old: ${drawn.splatsDrawn} splats`);
+    t.diagnostic(`canvas on opening: ${(openedPixels.nonBackground * 100).toFixed(1)} % non-background${stillEmpty ? '' : ' (a new frame was in already)'}`);
+    if (stillEmpty) assert.ok(openedPixels.nonBackground < 0.02, `the old map is off the canvas: ${(openedPixels.nonBackground * 100).toFixed(1)} % non-background`);
+
+    // A whole run in which every frame is refused: said over the map.
+    await chooseFolder(page, broken.dir);
+    s = await waitForStatus(page, (x) => x.sequence === 'rgbd_dataset_freiburg3_all_refused' && x.done && !x.playing, { timeoutMs: 60_000 });
+    const notice = await page.locator('#map-notice');
+    saveScreenshot('nothing-tracked-page.png', await page.screenshot());
+    t.diagnostic(`all refused: ${s.mapNotice}`);
+    assert.equal(s.framesFailed, 3);
+    assert.match(s.mapNotice ?? '', /^Nothing could be tracked: all 3 frames of rgbd_dataset_freiburg3_all_refused were skipped/);
+    assert.ok(await notice.isVisible(), 'the notice is shown over the map');
+    // A run with a map has none.
+    await page.locator('#sample-button').click();
+    s = await waitForStatus(page, (x) => x.sequence === 'tum_fr3_teddy_clip' && x.framesProcessed >= 1, { timeoutMs: 60_000 });
+    assert.equal(s.mapNotice, null);
+    assert.ok(!(await notice.isVisible()), 'the notice went with the run');
+  } finally {
+    await env.close();
+    fs.rmSync(tmp, { recursive: true, force: true });
+    fs.rmSync(broken.parent, { recursive: true, force: true });
   }
 });
