@@ -85,7 +85,8 @@ impl NoiseWeights<'_> {
 pub struct IcpStep {
     /// Accumulated system; `count` = inlier correspondences.
     pub system: NormalEquations,
-    /// Source points that projected into the image.
+    /// Source points that projected onto a pixel of the image holding a
+    /// measurement (depth and a normal).
     pub candidates: usize,
     /// Sum over those source points of their noise weight (the inverse
     /// axial variance at their depth, relative to the reference; 1 each
@@ -192,14 +193,18 @@ pub fn icp_step(
                 if j == NO_PIXEL {
                     continue;
                 }
-                acc.candidates += 1;
-                let wp = noise.map_or(1.0, |w| w.noise.weight(w.noise.axial_m(p.z)));
-                candidate_weight += wp;
                 let q = target.vertices[j];
                 let n = target.normals[j];
+                // A pixel without a measurement says nothing for or against
+                // the pose: a view whose depth covers a quarter of the
+                // image (a desk under two monitors, whose screens return
+                // none) is not a quarter inlier.
                 if q.z <= 0.0 || n == Vec3::ZERO {
                     continue;
                 }
+                acc.candidates += 1;
+                let wp = noise.map_or(1.0, |w| w.noise.weight(w.noise.axial_m(p.z)));
+                candidate_weight += wp;
                 let d = p - q;
                 if d.length_squared() > gate2 {
                     continue;
@@ -324,5 +329,33 @@ mod tests {
         target.depth_deviation.clear();
         let unweighted_plain = icp_step(&points, 1, &target, &identity, &gates, None);
         assert_eq!(unweighted.system.b, unweighted_plain.system.b);
+    }
+
+    #[test]
+    fn pixels_without_depth_are_not_counted_against_the_pose() {
+        // The model is a whole wall; the frame has depth on its bottom
+        // fifth only (screens above that return none).
+        let k = Intrinsics::new(60.0, 60.0, 23.5, 17.5, 48, 36);
+        let (points, mut target) = wall_model(&k, |_| true);
+        for (i, (q, n)) in target
+            .vertices
+            .iter_mut()
+            .zip(&mut target.normals)
+            .enumerate()
+        {
+            if i / k.width < k.height * 4 / 5 {
+                *q = Vec3::ZERO;
+                *n = Vec3::ZERO;
+            }
+        }
+        let gates = IcpGates {
+            distance_gate_m: 0.1,
+            normal_gate_deg: 20.0,
+            huber_m: 0.02,
+        };
+        let identity = RigidF32::from_affine(&DAffine3::IDENTITY);
+        let step = icp_step(&points, 1, &target, &identity, &gates, None);
+        assert!(step.system.count > 0);
+        assert!(step.inlier_ratio() > 0.99, "{}", step.inlier_ratio());
     }
 }
