@@ -15,7 +15,8 @@ use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use std::fs::File;
 use std::io::{BufReader, BufWriter};
 use std::path::{Path, PathBuf};
-use surfel_slam::dataset::{trajectory, DatasetSource, FrameEntry, Sequence};
+use surfel_slam::dataset::reference::{parse_reference, Reference};
+use surfel_slam::dataset::{trajectory, DatasetError, DatasetSource, FrameEntry, Sequence};
 use surfel_slam::eval::{ate, ate_in_frame};
 use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::mesh::MeshConfig;
@@ -104,6 +105,13 @@ pub struct RunArgs {
     /// then holds the placed frames only.
     #[arg(long, requires = "load", conflicts_with = "save")]
     localise: bool,
+    /// Score the run against your own reference trajectory too (a T265,
+    /// motion capture, another tool's output): TUM text (`t tx ty tz qx qy
+    /// qz qw`, matched by timestamp) or CSV with a header `frame, x, y, z,
+    /// qx, qy, qz, qw` (matched by frame number, 0-based) or `timestamp,
+    /// x, ...` (by timestamp); aligned rigidly as ATE is.
+    #[arg(long)]
+    reference: Option<PathBuf>,
     /// Voxel edge of the mesh, metres (0.001 to 1).
     #[arg(long, default_value_t = MeshConfig::default().voxel_size_m, allow_negative_numbers = true, value_parser = voxel_size)]
     voxel_size: f32,
@@ -118,9 +126,11 @@ impl RunArgs {
 
 /// Runs `surfel-slam run`; `given`: the ids of the options given on the
 /// command line. Returns the exit code (0, or `EXIT_FRAMES_SKIPPED` when
-/// some frames were unreadable).
+/// some frames were unreadable); an error (exit 1) when no frame could be
+/// pushed at all, before any output is written: an empty map is not a result.
 pub fn run(args: &RunArgs, given: &[String]) -> Result<u8> {
     let (mut source, sequence) = open_sequence(args)?;
+    let reference = read_reference(args)?;
     let frames = select_frames(&sequence, args)?;
     let mesh_config = checked_mesh_config(args)?;
     checked_session_path(args)?;
@@ -132,10 +142,17 @@ pub fn run(args: &RunArgs, given: &[String]) -> Result<u8> {
     let mut frame_log = args.frame_log.as_ref().map(|_| FrameLog::new(&sequence));
     let played = track_frames(
         &mut source,
-        &frames,
+        (&frames, sequence.frames.len()),
         &mut slam,
         (args.quiet, loop_log.as_mut(), frame_log.as_mut()),
     );
+    if played.pushed == 0 {
+        bail!(
+            "nothing was tracked: all {} frame(s) selected were skipped (named above); \
+             no trajectory, map, mesh or session written",
+            frames.len()
+        );
+    }
     write_outputs(args, &slam, mesh_config)?;
     if let (Some(log), Some(path)) = (&loop_log, &args.loop_log) {
         log.write(path)?;
@@ -143,7 +160,13 @@ pub fn run(args: &RunArgs, given: &[String]) -> Result<u8> {
     if let (Some(log), Some(path)) = (&frame_log, &args.frame_log) {
         log.write(path)?;
     }
-    print_summary(args, &sequence, &slam, frames.len(), played);
+    print_summary(
+        args,
+        (&sequence, reference.as_ref()),
+        &slam,
+        frames.len(),
+        played,
+    );
     Ok(if played.failed > 0 {
         EXIT_FRAMES_SKIPPED
     } else {
@@ -168,6 +191,22 @@ fn open_sequence(args: &RunArgs) -> Result<(DatasetSource, Sequence)> {
         eprintln!("warning: {warning}");
     }
     Ok((source, sequence))
+}
+
+/// The `--reference` file, parsed (its warnings on stderr), or `None`; a
+/// file that cannot be read is refused before the run, not after it.
+fn read_reference(args: &RunArgs) -> Result<Option<Reference>> {
+    let Some(path) = &args.reference else {
+        return Ok(None);
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading the reference {}", path.display()))?;
+    let reference = parse_reference(&text, &path.display().to_string())
+        .with_context(|| format!("reading the reference {}", path.display()))?;
+    for warning in &reference.warnings {
+        eprintln!("warning: {warning}");
+    }
+    Ok(Some(reference))
 }
 
 /// The frames `--first`, `--stride` and `--count` select; refuses an empty
@@ -321,7 +360,10 @@ fn first_readable<'a>(
 /// What the frame loop leaves for the summary.
 #[derive(Clone, Copy)]
 struct Played {
-    /// Frames skipped as unreadable (or refused by the pipeline).
+    /// Frames the pipeline took (whatever their verdict).
+    pushed: usize,
+    /// Frames skipped as unreadable (or refused by the pipeline); not the
+    /// recording's last frame when only its image is cut off (a warning).
     failed: usize,
     /// Mean and median time of `push_frame` over the frames pushed,
     /// milliseconds (decoding not included).
@@ -352,10 +394,12 @@ fn progress_bar(frames: usize, quiet: bool) -> ProgressBar {
 }
 
 /// Reads and pushes every frame into `slam`, naming lost, recovered and
-/// skipped frames on stderr, recording the loop stage in `loop_log` when given.
+/// skipped frames on stderr, recording the loop stage in `loop_log` when
+/// given. `in_sequence`: the sequence's frame count, whose last frame's
+/// undecodable image is a recording cut short, named as a warning.
 fn track_frames(
     source: &mut DatasetSource,
-    frames: &[&FrameEntry],
+    (frames, in_sequence): (&[&FrameEntry], usize),
     slam: &mut Pipeline,
     (quiet, mut loop_log, mut frame_log): (
         bool,
@@ -367,19 +411,19 @@ fn track_frames(
     let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
     let mut last = None;
     for entry in frames {
-        let result = source
-            .read_frame(entry, &slam.config().depth)
-            .map_err(anyhow::Error::from)
-            .and_then(|f| {
-                let t0 = std::time::Instant::now();
-                let r =
-                    slam.push_frame(&f, entry.timestamp)
-                        .with_context(|| match &entry.colour {
-                            Some(colour) => format!("{colour} + {}", entry.depth),
-                            None => entry.depth.clone(),
-                        })?;
-                Ok((r, t0.elapsed().as_secs_f64() * 1000.0))
-            });
+        let read = source.read_frame(entry, &slam.config().depth);
+        let cut_off = entry.index + 1 == in_sequence
+            && read.as_ref().is_err_and(DatasetError::is_undecodable_image);
+        let result = read.map_err(anyhow::Error::from).and_then(|f| {
+            let t0 = std::time::Instant::now();
+            let r = slam
+                .push_frame(&f, entry.timestamp)
+                .with_context(|| match &entry.colour {
+                    Some(colour) => format!("{colour} + {}", entry.depth),
+                    None => entry.depth.clone(),
+                })?;
+            Ok((r, t0.elapsed().as_secs_f64() * 1000.0))
+        });
         match result {
             Ok((report, elapsed)) => {
                 ms.push(elapsed);
@@ -407,8 +451,20 @@ fn track_frames(
                 if let Some(log) = frame_log.as_deref_mut() {
                     log.record_unreadable(entry);
                 }
-                failed += 1;
-                bar.suspend(|| eprintln!("frame {} skipped: {}", entry.index, describe(&e)));
+                if cut_off {
+                    // A recorder stopped mid-write leaves its last image
+                    // half written: the recording is whole up to it.
+                    bar.suspend(|| {
+                        eprintln!(
+                            "warning: frame {} skipped, the recording's last image does not decode (cut off when it stopped?): {}",
+                            entry.index,
+                            describe(&e)
+                        );
+                    });
+                } else {
+                    failed += 1;
+                    bar.suspend(|| eprintln!("frame {} skipped: {}", entry.index, describe(&e)));
+                }
             }
         }
         bar.inc(1);
@@ -432,6 +488,7 @@ fn track_frames(
     bar.finish_and_clear();
     ms.sort_by(f64::total_cmp);
     Played {
+        pushed: ms.len(),
         failed,
         mean_ms: ms.iter().sum::<f64>() / ms.len().max(1) as f64,
         median_ms: ms.get(ms.len() / 2).copied().unwrap_or(0.0),
@@ -542,10 +599,11 @@ fn write_outputs(args: &RunArgs, slam: &Pipeline, mesh_config: MeshConfig) -> Re
 }
 
 /// Prints the run's one summary line: frames and verdicts, map size, ATE
-/// against the ground truth when there is one, time per frame.
+/// against the ground truth when there is one, the difference from the
+/// device's odometry and from `--reference`, time per frame.
 fn print_summary(
     args: &RunArgs,
-    sequence: &Sequence,
+    (sequence, reference): (&Sequence, Option<&Reference>),
     slam: &Pipeline,
     frames: usize,
     played: Played,
@@ -554,6 +612,7 @@ fn print_summary(
         failed,
         mean_ms: mean,
         median_ms: median,
+        ..
     } = played;
     if let Some(localisation) = slam.localisation() {
         print_localise_summary(args, sequence, slam, localisation, (frames, played));
@@ -569,12 +628,15 @@ fn print_summary(
         }
     };
     let odometry = odometry_comparison(sequence, slam);
+    let reference = reference.map_or_else(String::new, |r| {
+        reference_comparison(args, r, sequence, slam.trajectory())
+    });
     let warnings = match slam.settings_warnings().len() {
         0 => String::new(),
         n => format!(", {n} camera-settings warning(s) (see above)"),
     };
     println!(
-        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {} restarted, {failed} unreadable, {} loop closures ({} global), {} surfels, {accuracy}{odometry}, {mean:.1} ms/frame (median {median:.1}){warnings}",
+        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {} restarted, {failed} unreadable, {} loop closures ({} global), {} surfels, {accuracy}{odometry}{reference}, {mean:.1} ms/frame (median {median:.1}){warnings}",
         args.dataset.display(),
         frames,
         counts.tracked,
@@ -603,6 +665,29 @@ fn odometry_comparison(sequence: &Sequence, slam: &Pipeline) -> String {
             a.pairs
         ),
         Err(e) => format!(", difference from the device's odometry n/a ({e})"),
+    }
+}
+
+/// The summary's comparison with `--reference`: the RMS distance between
+/// `poses` and the reference after rigid alignment, scored as ATE (pairs by
+/// the sequence's timestamps, the reference's frame numbers turned into
+/// them), named as the user's reference.
+fn reference_comparison(
+    args: &RunArgs,
+    reference: &Reference,
+    sequence: &Sequence,
+    poses: &[(f64, glam::DAffine3)],
+) -> String {
+    let file = args.reference.as_deref().unwrap_or(Path::new("")).display();
+    let stamped = reference.in_sequence_time(&sequence.frames);
+    match ate(poses, &stamped, MAX_DT) {
+        Ok(a) => format!(
+            ", difference from your reference ({file}) {} RMS ({} poses, by {})",
+            evaluate::cm(a.rmse_m),
+            a.pairs,
+            reference.key.name()
+        ),
+        Err(e) => format!(", difference from your reference ({file}) n/a ({e})"),
     }
 }
 

@@ -115,6 +115,20 @@ export interface Sequence {
   odometry: number[][];
   /** The odometry as TUM text, '' when there is none. */
   odometryTum: string;
+  /** What was skipped but did not stop the sequence, each naming its file (and line): a cut-off last row of an index or trajectory file (a recording stopped mid-write plays the rows it has), a 7-Scenes pose file unread. Show them; [] when none. */
+  warnings: string[];
+}
+
+/** A reference trajectory the user brings, parsed by parseReference. */
+export interface ParsedReference {
+  /** How its rows name frames: 'frame' (a CSV `frame` column: 0-based position in the sequence) or 'timestamp' (TUM text, or a CSV `timestamp` column). */
+  key: 'frame' | 'timestamp';
+  /** [key, tx, ty, tz, qx, qy, qz, qw] rows, world_from_camera, as in the file. */
+  poses: number[][];
+  /** The reference as TUM text in the sequence's time (frame numbers turned into `frameTimestamps`' when given), for `slam.ate(tum)` / `ateTum`. */
+  tum: string;
+  /** A cut-off last row skipped, naming the file and line; [] when none. */
+  warnings: string[];
 }
 
 /** Absolute trajectory error after rigid alignment, metres. */
