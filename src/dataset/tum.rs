@@ -258,12 +258,24 @@ mod tests {
         texts.insert("depth.txt".to_owned(), "1 depth/1.png\n".to_owned());
         texts.insert(
             "groundtruth.txt".to_owned(),
-            "# header\n1 0 0 0 0 0 0 1\n2 0 0 zero 0 0 0 1\n".to_owned(),
+            "# header\n1 0 0 0 0 0 0 1\n2 0 0 zero 0 0 0 1\n3 0 0 0 0 0 0 1\n".to_owned(),
         );
         let err = parse_sequence(&layout, &names, &texts, None).expect_err("bad gt");
         assert!(
             matches!(&err, DatasetError::MalformedLine { line_number: 3, file, .. } if file == "groundtruth.txt"),
             "{err:?}"
+        );
+        // The same line last: a recording cut short, skipped with a warning.
+        texts.insert(
+            "groundtruth.txt".to_owned(),
+            "# header\n1 0 0 0 0 0 0 1\n2 0 0 zero".to_owned(),
+        );
+        let seq = parse_sequence(&layout, &names, &texts, None).expect("plays what it has");
+        assert_eq!(seq.ground_truth.len(), 1);
+        assert!(
+            matches!(&seq.warnings[..], [DatasetError::CutOffLine { line_number: 3, file, .. }] if file == "groundtruth.txt"),
+            "{:?}",
+            seq.warnings
         );
         assert_eq!(
             parse_sequence(&layout, &names, &HashMap::new(), None).expect_err("no texts"),
