@@ -522,7 +522,7 @@ pub fn parse_sequence(
             (CameraPreset::IclNuim, frames, gt)
         }
         DatasetKind::SevenScenes => {
-            let (frames, gt) = seven_scenes::parse(&listing, index_texts)?;
+            let (frames, gt) = seven_scenes::parse(&listing, index_texts, &mut warnings)?;
             (CameraPreset::SevenScenes, frames, gt)
         }
         DatasetKind::RealSense => {

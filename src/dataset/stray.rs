@@ -37,7 +37,7 @@ use glam::{DAffine3, DQuat, DVec3};
 
 use crate::camera::Intrinsics;
 
-use super::lines::{content_lines, parse_rows, parse_rows_strict, Line};
+use super::lines::{parse_rows, parse_rows_strict, Line};
 use super::{index_text, numbered_in, CalibratedSize, DatasetError, FrameEntry, Layout};
 
 /// Width of the colour images `camera_matrix.csv` is calibrated for, pixels.
@@ -96,7 +96,7 @@ pub(crate) fn parse(
         .index_files
         .get(1)
         .ok_or_else(|| missing_index("odometry.csv"))?;
-    let intrinsics = parse_camera_matrix(index_text(texts, matrix_name)?, matrix_name)?;
+    let intrinsics = read_camera_matrix(index_text(texts, matrix_name)?, matrix_name, warnings)?;
     let rows = parse_rows(
         index_text(texts, odometry_name)?,
         odometry_name,
@@ -227,10 +227,37 @@ fn number(line: &Line<'_>, field: &str, what: &str) -> Result<f64, DatasetError>
 /// fy, cy from the second, scaled by 256 / 1920. The third row must hold
 /// three numbers, whatever they are. Errors name `file_name` and the line.
 pub fn parse_camera_matrix(text: &str, file_name: &str) -> Result<Intrinsics, DatasetError> {
-    let mut rows: Vec<[f64; 3]> = Vec::with_capacity(3);
+    let mut warnings = Vec::new();
+    let k = read_camera_matrix(text, file_name, &mut warnings)?;
+    match warnings.pop() {
+        Some(DatasetError::CutOffLine {
+            file,
+            line_number,
+            line,
+            reason,
+        }) => Err(DatasetError::MalformedLine {
+            file,
+            line_number,
+            line,
+            reason,
+        }),
+        Some(other) => Err(other),
+        None => Ok(k),
+    }
+}
+
+/// [`parse_camera_matrix`] for a recording: a cut-off third row (never
+/// read) is skipped onto `warnings`; a cut-off first or second row still
+/// leaves too few rows, an error.
+fn read_camera_matrix(
+    text: &str,
+    file_name: &str,
+    warnings: &mut Vec<DatasetError>,
+) -> Result<Intrinsics, DatasetError> {
     let mut last = Line::none(file_name);
-    for line in content_lines(text, file_name, true) {
-        if rows.len() == 3 {
+    let warned_before = warnings.len();
+    let rows = parse_rows(text, file_name, true, warnings, |i, line| {
+        if i == 3 {
             return Err(line.malformed("a 3x3 camera matrix has 3 rows; this is a 4th"));
         }
         let f = fields(&line);
@@ -241,18 +268,24 @@ pub fn parse_camera_matrix(text: &str, file_name: &str) -> Result<Intrinsics, Da
             )));
         };
         let what = "matrix entry";
-        rows.push([
+        let row = [
             number(&line, a, what)?,
             number(&line, b, what)?,
             number(&line, c, what)?,
-        ]);
+        ];
         last = line;
-    }
-    let [r0, r1, _] = rows[..] else {
-        return Err(last.malformed(&format!(
-            "expected the 3 rows of a 3x3 camera matrix, found {}",
-            rows.len()
-        )));
+        Ok(Some(row))
+    })?;
+    let (r0, r1) = match rows[..] {
+        [r0, r1, _] => (r0, r1),
+        // The third row cut off: it is not read.
+        [r0, r1] if warnings.len() > warned_before => (r0, r1),
+        _ => {
+            return Err(last.malformed(&format!(
+                "expected the 3 rows of a 3x3 camera matrix, found {}",
+                rows.len()
+            )))
+        }
     };
     let s = DEPTH_WIDTH as f64 / COLOUR_WIDTH as f64;
     let k = Intrinsics::new(
@@ -452,6 +485,22 @@ mod tests {
                 "{needle}: {err}"
             );
         }
+    }
+
+    #[test]
+    fn a_cut_off_third_camera_matrix_row_is_not_needed() {
+        let mut warnings = Vec::new();
+        let k = read_camera_matrix(
+            "1597.4, 0.0, 959.8\n0.0, 1597.4, 722.2\n0.0, 0.",
+            "m.csv",
+            &mut warnings,
+        )
+        .expect("rows 1 and 2 are read");
+        assert!((k.fx - 1597.4 * 256.0 / 1920.0).abs() < 1e-3);
+        assert_eq!(warnings.len(), 1);
+        let err = read_camera_matrix("1597.4, 0.0, 959.8\n0.0, 1597", "m.csv", &mut warnings)
+            .expect_err("the second row is needed");
+        assert!(err.to_string().contains("found 1"), "{err}");
     }
 
     #[test]
