@@ -11,7 +11,7 @@ import { execFileSync, spawnSync } from 'node:child_process';
 import { cpSync, existsSync, mkdirSync, mkdtempSync, readFileSync, rmSync, symlinkSync, writeFileSync } from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
-import { PKG, ROOT } from './long_run.mjs';
+import { loadPackage, PKG, ROOT } from './long_run.mjs';
 import { CLIP, plyVertexCount } from './sequence.mjs';
 import { makeIclNuim, makeRealSense, makeSevenScenes, makeStray } from './datasets.mjs';
 
@@ -207,4 +207,24 @@ test("the package README's Node example plays a Stray export cut short, and exit
   } finally {
     rmSync(dir, { recursive: true, force: true });
   }
+});
+
+test("the package README's API table names every preset and layout kind the package has", { skip }, async () => {
+  const m = await loadPackage();
+  const readme = readFileSync(path.join(ROOT, 'pkg-config/README.md'), 'utf8');
+  const row = (call) => {
+    const line = readme.split('\n').find((l) => l.startsWith(`| \`${call}`));
+    assert.ok(line, `no API row for ${call}`);
+    return line;
+  };
+  const presetsRow = row('presets()');
+  const names = m.presets().map((p) => p.name);
+  assert.ok(names.length >= 7, names.join());
+  for (const name of names) assert.ok(presetsRow.includes(`\`${name}\``), `presets() row lacks ${name}: ${presetsRow}`);
+  // The layout kinds as the package's own typings give them.
+  const dts = readFileSync(path.join(PKG, 'surfel_slam.d.ts'), 'utf8');
+  const kinds = [.../export type LayoutKind = ([^;]+);/.exec(dts)?.[1].matchAll(/'([^']+)'/g) ?? []].map((k) => k[1]);
+  assert.ok(kinds.length >= 5, kinds.join());
+  const layoutRow = row('detectLayout(');
+  for (const kind of kinds) assert.ok(layoutRow.includes(`'${kind}'`), `detectLayout row lacks '${kind}': ${layoutRow}`);
 });
