@@ -615,7 +615,16 @@ fn print_summary(
         ..
     } = played;
     if let Some(localisation) = slam.localisation() {
-        print_localise_summary(args, sequence, slam, localisation, (frames, played));
+        let reference = reference.map_or_else(String::new, |r| {
+            reference_comparison(args, r, sequence, localisation.trajectory())
+        });
+        print_localise_summary(
+            args,
+            (sequence, &reference),
+            slam,
+            localisation,
+            (frames, played),
+        );
         return;
     }
     let counts = slam.counts();
@@ -694,10 +703,11 @@ fn reference_comparison(
 /// The summary line of a `--localise` run: frames placed (how), unplaced,
 /// and the placed frames' ATE in the map's frame: the ground truth aligned
 /// to the saved map's trajectory only (when the sequence's ground truth
-/// covers the map's frames), never to the localised frames.
+/// covers the map's frames), never to the localised frames; `reference`:
+/// the placed frames' difference from `--reference` (`""` without one).
 fn print_localise_summary(
     args: &RunArgs,
-    sequence: &Sequence,
+    (sequence, reference): (&Sequence, &str),
     slam: &Pipeline,
     localisation: &Localisation,
     (frames, played): (usize, Played),
@@ -722,7 +732,7 @@ fn print_localise_summary(
         },
     };
     println!(
-        "{}: localised {} frames in {}: {} placed ({} relocalised, {} tracked, {} held), {} unplaced, {} unreadable, map unchanged ({} surfels), {accuracy}, {:.1} ms/frame (median {:.1})",
+        "{}: localised {} frames in {}: {} placed ({} relocalised, {} tracked, {} held), {} unplaced, {} unreadable, map unchanged ({} surfels), {accuracy}{reference}, {:.1} ms/frame (median {:.1})",
         args.dataset.display(),
         frames,
         args.load.as_deref().unwrap_or(Path::new("")).display(),
