@@ -216,7 +216,8 @@ pub enum LostReason {
 
 impl LostReason {
     /// Every reason, in declaration order: what the docs must name (a test
-    /// checks that `docs/js-api.md` and the package README list each).
+    /// checks that `docs/js-api.md`, the package README and its typings
+    /// list each).
     pub const ALL: [Self; 5] = [
         Self::TooFewInliers,
         Self::HighResidual,
@@ -657,6 +658,8 @@ mod lost_reason_docs {
                 "pkg-config/README.md",
                 include_str!("../../pkg-config/README.md"),
             ),
+            // The package's TypeScript typings (FrameReport.lostReason).
+            ("src/wasm/convert.rs", include_str!("../wasm/convert.rs")),
         ] {
             for reason in LostReason::ALL {
                 let quoted = format!("'{}'", reason.name());

@@ -28,7 +28,7 @@ export interface FrameReport {
   timestamp: number;
   /** 'recovered': re-acquired against the map after a loss (fused); while localising, placed by relocalisation. 'unplaced' (localising only): not found in the loaded map, no pose (pose, translation and quaternion are null). 'held': fused, but the geometry left some directions of motion free (a flat wall) and the pose was held at the motion prior in those. 'restarted': lost for restartAfterLost frames in a row, fused at the last placed pose as the first frame of a new segment of the map; the map so far is kept but not tracked against until a frame of the segment is placed in it (loopDecision then says 'joined' and loopClosed is true: the segment moved onto it). */
   verdict: 'initialised' | 'tracked' | 'recovered' | 'held' | 'lost' | 'restarted' | 'unplaced';
-  lostReason: null | 'too-few-inliers' | 'high-residual' | 'ill-conditioned' | 'implausible-motion';
+  lostReason: null | 'too-few-inliers' | 'high-residual' | 'ill-conditioned' | 'implausible-motion' | 'inconsistent';
   /** world_from_camera, 4x4 column-major, metres; null for an 'unplaced' frame. */
   pose: Float64Array | null;
   translation: [number, number, number] | null;
