@@ -268,13 +268,35 @@ fn bad_folders_and_settings_are_refused_by_name() {
     for c in &colour {
         std::fs::write(all_bad.join(c), b"garbage").expect("write");
     }
-    let a = run(&all_bad, &[]);
+    let outputs = ["t.txt", "map.ply", "mesh.glb", "s.slam"].map(|f| all_bad.join(f));
+    let [t, ply, mesh, session] = outputs.each_ref().map(|p| p.to_str().expect("utf-8"));
+    let a = run(
+        &all_bad,
+        &[
+            "--trajectory",
+            t,
+            "--ply",
+            ply,
+            "--mesh",
+            mesh,
+            "--save",
+            session,
+        ],
+    );
     expect(
         "no readable frame",
         &a,
         1,
         &["no frame of the sequence could be read"],
     );
+    // Nothing tracked: no empty map, mesh or trajectory passed off as a result.
+    for path in &outputs {
+        assert!(
+            !path.exists(),
+            "{} written by a run that did nothing",
+            path.display()
+        );
+    }
 
     // And the good folder runs clean.
     let a = run(&good, &[]);

@@ -345,3 +345,109 @@ fn negative_fy_on_the_command_line_matches_the_icl_preset() {
     let (flipped, _) = run("flipped.txt", &["--fy", "480"]);
     assert_ne!(text(&flipped), text(&preset));
 }
+
+/// Issue #84, part 4: `run --reference FILE` scores the run against a
+/// trajectory the user brings as against ground truth. The bundled clip's
+/// real ground truth is written as TUM text, as a timestamp CSV (columns
+/// in another order, an extra one, and a cut-off last row: a warning) and
+/// as a frame-number CSV (each frame's nearest truth pose, as ATE pairs
+/// them): each gives exactly the run's ATE, named as the user's reference.
+#[test]
+fn run_reference_is_scored_like_the_ground_truth_in_each_format() {
+    let clip = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("www/sample/tum_fr3_teddy_clip");
+    let tmp = scratch("reference");
+    let truth = parse_tum(
+        &std::fs::read_to_string(clip.join("groundtruth.txt")).expect("truth"),
+        "groundtruth.txt",
+    )
+    .expect("parses");
+    let sequence = surfel_slam::dataset::Sequence::open(&clip).expect("the clip opens");
+    let row = |key: String, p: &DAffine3| {
+        let t = p.translation;
+        let [qx, qy, qz, qw] = surfel_slam::se3::unit_quaternion(p);
+        (
+            key,
+            [t.x, t.y, t.z, qx, qy, qz, qw].map(|v| format!("{v:.9}")),
+        )
+    };
+
+    let tum = tmp.0.join("reference.txt");
+    std::fs::write(&tum, format_tum(&truth)).expect("write");
+    // qw first, then x..qz, and a column that is not read.
+    let mut by_time = String::from("qw, timestamp, x, y, z, qx, qy, qz, source\n");
+    for (t, p) in &truth {
+        let (key, [x, y, z, qx, qy, qz, qw]) = row(format!("{t:.6}"), p);
+        by_time.push_str(&format!(
+            "{qw}, {key}, {x}, {y}, {z}, {qx}, {qy}, {qz}, mocap\n"
+        ));
+    }
+    by_time.push_str("0.99, 1341841999.1, 0.1"); // the recorder stopped here
+    let time_csv = tmp.0.join("reference_by_time.csv");
+    std::fs::write(&time_csv, by_time).expect("write");
+    let mut by_frame = String::from("frame, x, y, z, qx, qy, qz, qw\n");
+    for f in &sequence.frames {
+        if let Some(p) = sequence.ground_truth_for(f.timestamp, 0.02) {
+            let (key, v) = row(f.index.to_string(), &p);
+            by_frame.push_str(&format!("{key}, {}\n", v.join(", ")));
+        }
+    }
+    let frame_csv = tmp.0.join("reference_by_frame.csv");
+    std::fs::write(&frame_csv, by_frame).expect("write");
+
+    for (file, by) in [
+        (&tum, "timestamp"),
+        (&time_csv, "timestamp"),
+        (&frame_csv, "frame"),
+    ] {
+        let a = cli(&[
+            "run".as_ref(),
+            clip.as_os_str(),
+            "--quiet".as_ref(),
+            "--count=16".as_ref(),
+            "--reference".as_ref(),
+            file.as_os_str(),
+        ]);
+        eprintln!("{}{}", a.stdout, a.stderr);
+        assert_eq!(a.code, 0, "{}", a.stderr);
+        let ate = number_after(&a.stdout, "ATE ");
+        let label = format!("difference from your reference ({}) ", file.display());
+        let difference = number_after(&a.stdout, &label);
+        assert_eq!(ate, difference, "{}", a.stdout);
+        let pairs = a
+            .stdout
+            .split(" cm (")
+            .nth(1)
+            .and_then(|s| s.split(' ').next());
+        assert!(
+            a.stdout.contains(&format!(
+                "{difference} cm RMS ({} poses, by {by})",
+                pairs.unwrap_or("?")
+            )),
+            "{}",
+            a.stdout
+        );
+        let cut_off = a.stderr.matches("the last line is cut off").count();
+        assert_eq!(cut_off, usize::from(file == &time_csv), "{}", a.stderr);
+    }
+
+    // A reference that cannot be read stops before the run, naming the line.
+    let bad = tmp.0.join("bad.csv");
+    std::fs::write(&bad, "frame, x, y, z, qx, qy, qw\n0, 0, 0, 0, 0, 0, 1\n").expect("write");
+    let out = tmp.0.join("never.txt");
+    let a = cli(&[
+        "run".as_ref(),
+        clip.as_os_str(),
+        "--quiet".as_ref(),
+        "--reference".as_ref(),
+        bad.as_os_str(),
+        "--trajectory".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert_eq!(a.code, 1, "{}", a.stderr);
+    assert!(
+        a.stderr.contains("bad.csv, line 1") && a.stderr.contains("no `qz` column"),
+        "{}",
+        a.stderr
+    );
+    assert!(!out.exists());
+}

@@ -438,7 +438,8 @@ fn malformed_files_are_refused_naming_the_file() {
         .lines()
         .enumerate()
         .map(|(i, l)| {
-            if i == 2 {
+            // A middle row: a cut-off last row is skipped instead (below).
+            if i == 1 {
                 l.splitn(3, ", ").take(2).collect::<Vec<_>>().join(", ") + ", 0, 0, 0, 0, 0, 1\n"
             } else {
                 format!("{l}\n")
@@ -448,7 +449,7 @@ fn malformed_files_are_refused_naming_the_file() {
     std::fs::write(&csv, short).unwrap();
     let err = open_err(&dir.0);
     assert!(
-        matches!(&err, DatasetError::MalformedLine { file, line_number: 3, reason, .. } if file == "odometry.csv" && reason.contains("found 8")),
+        matches!(&err, DatasetError::MalformedLine { file, line_number: 2, reason, .. } if file == "odometry.csv" && reason.contains("found 8")),
         "{err:?}"
     );
     std::fs::write(&csv, good).unwrap();
@@ -488,11 +489,70 @@ fn malformed_files_are_refused_naming_the_file() {
     let answer = run_cli(&dir.0, &dir.0.join("t.txt"));
     assert_eq!(answer.code, 1, "{}", answer.stderr);
     assert!(
+        !dir.0.join("t.txt").exists(),
+        "nothing tracked, yet a trajectory was written"
+    );
+    assert!(
         answer.stderr.contains("depth/000000.png is 128x96 pixels")
             && answer.stderr.contains("confidence/000001.png is missing"),
         "{}",
         answer.stderr
     );
+}
+
+/// Issue #82, item 5: a Stray export whose app stopped mid-write (the last
+/// `odometry.csv` row cut off, the last depth image half written) plays
+/// every complete frame: one warning for the row naming the file and the
+/// line, one for the image, exit 0.
+#[test]
+fn a_stray_export_cut_short_plays_its_complete_frames() {
+    const CUT_FRAMES: usize = 8;
+    let dir = scratch("stray-cut");
+    write_stray(&dir.0, CUT_FRAMES, false);
+    let csv = dir.0.join("odometry.csv");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let rows = text.lines().count(); // header + one row a frame
+    let last = text.lines().last().unwrap();
+    let cut = &last[..last.len() / 2];
+    let kept = text.len() - last.len() - 1;
+    std::fs::write(&csv, format!("{}{cut}", &text[..kept])).unwrap();
+    let depth = dir.0.join(format!("depth/{:06}.png", CUT_FRAMES - 1));
+    let bytes = std::fs::read(&depth).unwrap();
+    std::fs::write(&depth, &bytes[..bytes.len() / 2]).unwrap();
+
+    let sequence = Sequence::open(&dir.0).expect("a cut-off last row does not refuse it");
+    assert_eq!(sequence.frames.len(), CUT_FRAMES);
+    assert_eq!(sequence.odometry.len(), CUT_FRAMES - 1);
+    assert_eq!(sequence.warnings.len(), 1, "{:?}", sequence.warnings);
+
+    let out = dir.0.join("estimate.txt");
+    let a = run_cli(&dir.0, &out);
+    eprintln!("{}{}", a.stdout, a.stderr);
+    assert_eq!(a.code, 0, "{}\n{}", a.stdout, a.stderr);
+    let row_warning = format!("warning: odometry.csv, line {rows}: the last line is cut off");
+    assert_eq!(a.stderr.matches(&row_warning).count(), 1, "{}", a.stderr);
+    let image_warning = format!(
+        "warning: frame {} skipped, the recording's last image does not decode",
+        CUT_FRAMES - 1
+    );
+    assert_eq!(a.stderr.matches(&image_warning).count(), 1, "{}", a.stderr);
+    assert!(
+        a.stderr
+            .contains(&format!("depth/{:06}.png", CUT_FRAMES - 1)),
+        "{}",
+        a.stderr
+    );
+    assert!(
+        a.stdout.contains(&format!("{CUT_FRAMES} frames,"))
+            && a.stdout.contains(" 0 lost,")
+            && a.stdout.contains(" 0 unreadable,"),
+        "{}",
+        a.stdout
+    );
+    let poses = trajectory::parse_tum(&std::fs::read_to_string(&out).unwrap(), "estimate")
+        .unwrap()
+        .len();
+    assert_eq!(poses, CUT_FRAMES - 1, "every complete frame placed");
 }
 
 /// `Pipeline::push_decoded` (the page's `Slam.pushFiles`): a Stray frame's

@@ -7,7 +7,8 @@
 //! `--load`, the session replaces the new pipeline, the tracking options it
 //! overrides are named, and `--localise` switches it to localise mode),
 //! `track_frames`, `write_outputs` (with `--save`, the session),
-//! `print_summary` (or `print_localise_summary`).
+//! `print_summary` (or `print_localise_summary`; both in `summary.rs`, with
+//! `read_reference`, the `--reference` file read before the run).
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -15,20 +16,19 @@ use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use std::fs::File;
 use std::io::{BufReader, BufWriter};
 use std::path::{Path, PathBuf};
-use surfel_slam::dataset::{trajectory, DatasetSource, FrameEntry, Sequence};
-use surfel_slam::eval::{ate, ate_in_frame};
+use surfel_slam::dataset::{trajectory, DatasetError, DatasetSource, FrameEntry, Sequence};
 use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::mesh::MeshConfig;
-use surfel_slam::pipeline::Localisation;
 use surfel_slam::session;
 use surfel_slam::{FrameReport, Pipeline, SlamConfig, Verdict};
 
 use crate::frame_log::FrameLog;
 use crate::loop_log::LoopLog;
 use crate::mesh_file::{mesh_format, write_mesh_file};
+use crate::summary::{print_summary, read_reference, Played};
 use crate::{
-    at_frame_size, config_for, describe, evaluate, mesh_path, positive, voxel_size,
-    CameraOverrides, TrackingArgs, MAX_DT,
+    at_frame_size, config_for, describe, mesh_path, positive, voxel_size, CameraOverrides,
+    TrackingArgs,
 };
 
 /// Exit code of a run that finished with some frames skipped as unreadable.
@@ -38,7 +38,7 @@ const EXIT_FRAMES_SKIPPED: u8 = 3;
 pub struct RunArgs {
     /// Dataset folder, or archive (.zip, .tar, .tar.gz / .tgz) read in place;
     /// layout detected automatically.
-    dataset: PathBuf,
+    pub(crate) dataset: PathBuf,
     /// Write the estimated trajectory here (TUM format, world_from_camera).
     #[arg(long)]
     trajectory: Option<PathBuf>,
@@ -96,7 +96,7 @@ pub struct RunArgs {
     /// trajectory and settings; the frames `--first`/`--count` select are
     /// pushed after its last one. The camera must be the session's.
     #[arg(long)]
-    load: Option<PathBuf>,
+    pub(crate) load: Option<PathBuf>,
     /// With --load: localise the frames in the saved map without changing
     /// it (no fusion, no loop closure). The first frame is placed by
     /// relocalisation against the session's keyframes; frames that cannot
@@ -104,6 +104,13 @@ pub struct RunArgs {
     /// then holds the placed frames only.
     #[arg(long, requires = "load", conflicts_with = "save")]
     localise: bool,
+    /// Score the run against your own reference trajectory too (a T265,
+    /// motion capture, another tool's output): TUM text (`t tx ty tz qx qy
+    /// qz qw`, matched by timestamp) or CSV with a header `frame, x, y, z,
+    /// qx, qy, qz, qw` (matched by frame number, 0-based) or `timestamp,
+    /// x, ...` (by timestamp); aligned rigidly as ATE is.
+    #[arg(long)]
+    pub(crate) reference: Option<PathBuf>,
     /// Voxel edge of the mesh, metres (0.001 to 1).
     #[arg(long, default_value_t = MeshConfig::default().voxel_size_m, allow_negative_numbers = true, value_parser = voxel_size)]
     voxel_size: f32,
@@ -118,9 +125,11 @@ impl RunArgs {
 
 /// Runs `surfel-slam run`; `given`: the ids of the options given on the
 /// command line. Returns the exit code (0, or `EXIT_FRAMES_SKIPPED` when
-/// some frames were unreadable).
+/// some frames were unreadable); an error (exit 1) when no frame could be
+/// pushed at all, before any output is written: an empty map is not a result.
 pub fn run(args: &RunArgs, given: &[String]) -> Result<u8> {
     let (mut source, sequence) = open_sequence(args)?;
+    let reference = read_reference(args)?;
     let frames = select_frames(&sequence, args)?;
     let mesh_config = checked_mesh_config(args)?;
     checked_session_path(args)?;
@@ -132,10 +141,17 @@ pub fn run(args: &RunArgs, given: &[String]) -> Result<u8> {
     let mut frame_log = args.frame_log.as_ref().map(|_| FrameLog::new(&sequence));
     let played = track_frames(
         &mut source,
-        &frames,
+        (&frames, sequence.frames.len()),
         &mut slam,
         (args.quiet, loop_log.as_mut(), frame_log.as_mut()),
     );
+    if played.pushed == 0 {
+        bail!(
+            "nothing was tracked: all {} frame(s) selected were skipped (named above); \
+             no trajectory, map, mesh or session written",
+            frames.len()
+        );
+    }
     write_outputs(args, &slam, mesh_config)?;
     if let (Some(log), Some(path)) = (&loop_log, &args.loop_log) {
         log.write(path)?;
@@ -143,7 +159,13 @@ pub fn run(args: &RunArgs, given: &[String]) -> Result<u8> {
     if let (Some(log), Some(path)) = (&frame_log, &args.frame_log) {
         log.write(path)?;
     }
-    print_summary(args, &sequence, &slam, frames.len(), played);
+    print_summary(
+        args,
+        (&sequence, reference.as_ref()),
+        &slam,
+        frames.len(),
+        played,
+    );
     Ok(if played.failed > 0 {
         EXIT_FRAMES_SKIPPED
     } else {
@@ -318,17 +340,6 @@ fn first_readable<'a>(
     }
 }
 
-/// What the frame loop leaves for the summary.
-#[derive(Clone, Copy)]
-struct Played {
-    /// Frames skipped as unreadable (or refused by the pipeline).
-    failed: usize,
-    /// Mean and median time of `push_frame` over the frames pushed,
-    /// milliseconds (decoding not included).
-    mean_ms: f64,
-    median_ms: f64,
-}
-
 /// The progress bar of the frame loop (hidden with `--quiet`).
 fn progress_bar(frames: usize, quiet: bool) -> ProgressBar {
     let bar = if quiet {
@@ -352,10 +363,12 @@ fn progress_bar(frames: usize, quiet: bool) -> ProgressBar {
 }
 
 /// Reads and pushes every frame into `slam`, naming lost, recovered and
-/// skipped frames on stderr, recording the loop stage in `loop_log` when given.
+/// skipped frames on stderr, recording the loop stage in `loop_log` when
+/// given. `in_sequence`: the sequence's frame count, whose last frame's
+/// undecodable image is a recording cut short, named as a warning.
 fn track_frames(
     source: &mut DatasetSource,
-    frames: &[&FrameEntry],
+    (frames, in_sequence): (&[&FrameEntry], usize),
     slam: &mut Pipeline,
     (quiet, mut loop_log, mut frame_log): (
         bool,
@@ -367,19 +380,19 @@ fn track_frames(
     let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
     let mut last = None;
     for entry in frames {
-        let result = source
-            .read_frame(entry, &slam.config().depth)
-            .map_err(anyhow::Error::from)
-            .and_then(|f| {
-                let t0 = std::time::Instant::now();
-                let r =
-                    slam.push_frame(&f, entry.timestamp)
-                        .with_context(|| match &entry.colour {
-                            Some(colour) => format!("{colour} + {}", entry.depth),
-                            None => entry.depth.clone(),
-                        })?;
-                Ok((r, t0.elapsed().as_secs_f64() * 1000.0))
-            });
+        let read = source.read_frame(entry, &slam.config().depth);
+        let cut_off = entry.index + 1 == in_sequence
+            && read.as_ref().is_err_and(DatasetError::is_undecodable_image);
+        let result = read.map_err(anyhow::Error::from).and_then(|f| {
+            let t0 = std::time::Instant::now();
+            let r = slam
+                .push_frame(&f, entry.timestamp)
+                .with_context(|| match &entry.colour {
+                    Some(colour) => format!("{colour} + {}", entry.depth),
+                    None => entry.depth.clone(),
+                })?;
+            Ok((r, t0.elapsed().as_secs_f64() * 1000.0))
+        });
         match result {
             Ok((report, elapsed)) => {
                 ms.push(elapsed);
@@ -407,8 +420,20 @@ fn track_frames(
                 if let Some(log) = frame_log.as_deref_mut() {
                     log.record_unreadable(entry);
                 }
-                failed += 1;
-                bar.suspend(|| eprintln!("frame {} skipped: {}", entry.index, describe(&e)));
+                if cut_off {
+                    // A recorder stopped mid-write leaves its last image
+                    // half written: the recording is whole up to it.
+                    bar.suspend(|| {
+                        eprintln!(
+                            "warning: frame {} skipped, the recording's last image does not decode (cut off when it stopped?): {}",
+                            entry.index,
+                            describe(&e)
+                        );
+                    });
+                } else {
+                    failed += 1;
+                    bar.suspend(|| eprintln!("frame {} skipped: {}", entry.index, describe(&e)));
+                }
             }
         }
         bar.inc(1);
@@ -432,6 +457,7 @@ fn track_frames(
     bar.finish_and_clear();
     ms.sort_by(f64::total_cmp);
     Played {
+        pushed: ms.len(),
         failed,
         mean_ms: ms.iter().sum::<f64>() / ms.len().max(1) as f64,
         median_ms: ms.get(ms.len() / 2).copied().unwrap_or(0.0),
@@ -539,116 +565,4 @@ fn write_outputs(args: &RunArgs, slam: &Pipeline, mesh_config: MeshConfig) -> Re
         write_mesh_file(slam.map(), &config, path, args.quiet)?;
     }
     Ok(())
-}
-
-/// Prints the run's one summary line: frames and verdicts, map size, ATE
-/// against the ground truth when there is one, time per frame.
-fn print_summary(
-    args: &RunArgs,
-    sequence: &Sequence,
-    slam: &Pipeline,
-    frames: usize,
-    played: Played,
-) {
-    let Played {
-        failed,
-        mean_ms: mean,
-        median_ms: median,
-    } = played;
-    if let Some(localisation) = slam.localisation() {
-        print_localise_summary(args, sequence, slam, localisation, (frames, played));
-        return;
-    }
-    let counts = slam.counts();
-    let accuracy = if sequence.ground_truth.is_empty() {
-        "ATE n/a (no ground truth)".to_string()
-    } else {
-        match ate(slam.trajectory(), &sequence.ground_truth, MAX_DT) {
-            Ok(a) => format!("ATE {} ({} poses)", evaluate::cm(a.rmse_m), a.pairs),
-            Err(e) => format!("ATE n/a ({e})"),
-        }
-    };
-    let odometry = odometry_comparison(sequence, slam);
-    let warnings = match slam.settings_warnings().len() {
-        0 => String::new(),
-        n => format!(", {n} camera-settings warning(s) (see above)"),
-    };
-    println!(
-        "{}: {} frames, {} tracked, {} lost, {} recovered, {} held, {} restarted, {failed} unreadable, {} loop closures ({} global), {} surfels, {accuracy}{odometry}, {mean:.1} ms/frame (median {median:.1}){warnings}",
-        args.dataset.display(),
-        frames,
-        counts.tracked,
-        counts.lost,
-        counts.recovered,
-        counts.held,
-        counts.restarted,
-        slam.loop_closures(),
-        slam.global_loop_closures(),
-        slam.map().live_len(),
-    );
-}
-
-/// The summary's comparison with the recording device's own trajectory
-/// (Stray Scanner's ARKit odometry), `""` when the sequence has none: the
-/// RMS distance between the two after rigid alignment, as ATE is computed,
-/// but not an error: the odometry drifts too.
-fn odometry_comparison(sequence: &Sequence, slam: &Pipeline) -> String {
-    if sequence.odometry.is_empty() {
-        return String::new();
-    }
-    match ate(slam.trajectory(), &sequence.odometry, MAX_DT) {
-        Ok(a) => format!(
-            ", difference from the device's odometry {} RMS ({} poses; odometry, not ground truth)",
-            evaluate::cm(a.rmse_m),
-            a.pairs
-        ),
-        Err(e) => format!(", difference from the device's odometry n/a ({e})"),
-    }
-}
-
-/// The summary line of a `--localise` run: frames placed (how), unplaced,
-/// and the placed frames' ATE in the map's frame: the ground truth aligned
-/// to the saved map's trajectory only (when the sequence's ground truth
-/// covers the map's frames), never to the localised frames.
-fn print_localise_summary(
-    args: &RunArgs,
-    sequence: &Sequence,
-    slam: &Pipeline,
-    localisation: &Localisation,
-    (frames, played): (usize, Played),
-) {
-    let c = localisation.counts();
-    let placed = localisation.trajectory();
-    let accuracy = match ate(slam.trajectory(), &sequence.ground_truth, MAX_DT) {
-        _ if sequence.ground_truth.is_empty() => "ATE n/a (no ground truth)".to_owned(),
-        Err(e) => format!("ATE in the map's frame n/a (the map's own frames: {e})"),
-        Ok(map) => match ate_in_frame(
-            placed,
-            &sequence.ground_truth,
-            MAX_DT,
-            map.ground_truth_from_estimate,
-        ) {
-            Ok(a) => format!(
-                "ATE in the map's frame {} ({} poses)",
-                evaluate::cm(a.rmse_m),
-                a.pairs
-            ),
-            Err(e) => format!("ATE in the map's frame n/a ({e})"),
-        },
-    };
-    println!(
-        "{}: localised {} frames in {}: {} placed ({} relocalised, {} tracked, {} held), {} unplaced, {} unreadable, map unchanged ({} surfels), {accuracy}, {:.1} ms/frame (median {:.1})",
-        args.dataset.display(),
-        frames,
-        args.load.as_deref().unwrap_or(Path::new("")).display(),
-        placed.len(),
-        c.recovered,
-        c.tracked,
-        c.held,
-        c.lost,
-        played.failed,
-        slam.map().live_len(),
-        played.mean_ms,
-        played.median_ms,
-    );
 }

@@ -18,6 +18,7 @@ mod loop_log;
 mod mesh_file;
 mod plot;
 mod run;
+mod summary;
 
 use anyhow::Result;
 use clap::builder::{PossibleValuesParser, TypedValueParser};

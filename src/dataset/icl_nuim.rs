@@ -13,15 +13,17 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::lines::content_lines;
+use super::lines::{parse_rows, parse_rows_strict, Line};
 use super::{check_listed, index_text, trajectory, DatasetError, FrameEntry, Layout, Parsed};
 
 /// Builds the ICL-NUIM frame list and ground truth from the layout's index
-/// texts (`index_files[0]` = associations, `[1]` = `*.gt.freiburg` if any).
+/// texts (`index_files[0]` = associations, `[1]` = `*.gt.freiburg` if any);
+/// a cut-off last line of either is skipped onto `warnings`.
 pub(crate) fn parse(
     layout: &Layout,
     listing: &HashSet<&str>,
     texts: &HashMap<String, String>,
+    warnings: &mut Vec<DatasetError>,
 ) -> Result<Parsed, DatasetError> {
     let Some(assoc_name) = layout.index_files.first() else {
         return Err(DatasetError::MissingFile {
@@ -29,10 +31,13 @@ pub(crate) fn parse(
             listed_in: "the ICL-NUIM layout".to_owned(),
         });
     };
-    let mut frames = parse_associations(
+    let root = layout.root_prefix.as_str();
+    let mut frames = parse_rows(
         index_text(texts, assoc_name)?,
         assoc_name,
-        &layout.root_prefix,
+        true,
+        warnings,
+        |_, line| association(&line, root).map(Some),
     )?;
     for frame in &mut frames {
         let colour = frame.colour.as_deref().unwrap_or_default();
@@ -44,7 +49,7 @@ pub(crate) fn parse(
         frame.index = i;
     }
     let ground_truth = match layout.index_files.get(1) {
-        Some(name) => trajectory::parse_tum(index_text(texts, name)?, name)?,
+        Some(name) => trajectory::read_tum(index_text(texts, name)?, name, warnings)?,
         None => Vec::new(),
     };
     Ok((frames, ground_truth))
@@ -52,37 +57,45 @@ pub(crate) fn parse(
 
 /// Parses an associations file: `N depth N rgb` (or `t rgb t depth`) lines,
 /// `#` comments and blank lines skipped; paths get `root_prefix` prepended.
+/// Every line must parse.
 pub fn parse_associations(
     text: &str,
     file_name: &str,
     root_prefix: &str,
 ) -> Result<Vec<FrameEntry>, DatasetError> {
-    let mut frames = Vec::new();
-    for line in content_lines(text, file_name, true) {
-        let malformed = |reason: &str| line.malformed(reason);
-        let tokens: Vec<&str> = line.tokens().collect();
-        let [t1, p1, t2, p2] = tokens[..] else {
-            return Err(malformed("expected `N depth/N.png N rgb/N.png`"));
-        };
-        let number = |t: &str| t.parse::<f64>().ok().filter(|v| v.is_finite());
-        let (Some(t1), Some(_)) = (number(t1), number(t2)) else {
-            return Err(malformed("the frame numbers are not finite numbers"));
-        };
-        // ICL-NUIM lists depth first; associate.py output lists colour first.
-        let depth_first = p1.contains("depth") || !p2.contains("depth");
-        let (depth, colour) = if depth_first { (p1, p2) } else { (p2, p1) };
-        frames.push(FrameEntry {
-            index: frames.len(),
-            timestamp: t1,
-            colour: Some(format!("{root_prefix}{colour}")),
-            depth: format!("{root_prefix}{depth}"),
-            confidence: None,
-            calibrated_size: None,
-            pose_file: None,
-            missing: None,
-        });
+    let mut frames = parse_rows_strict(text, file_name, true, |_, line| {
+        association(&line, root_prefix).map(Some)
+    })?;
+    for (i, frame) in frames.iter_mut().enumerate() {
+        frame.index = i;
     }
     Ok(frames)
+}
+
+/// One association line as a frame (index 0: the caller numbers them).
+fn association(line: &Line<'_>, root_prefix: &str) -> Result<FrameEntry, DatasetError> {
+    let malformed = |reason: &str| line.malformed(reason);
+    let tokens: Vec<&str> = line.tokens().collect();
+    let [t1, p1, t2, p2] = tokens[..] else {
+        return Err(malformed("expected `N depth/N.png N rgb/N.png`"));
+    };
+    let number = |t: &str| t.parse::<f64>().ok().filter(|v| v.is_finite());
+    let (Some(t1), Some(_)) = (number(t1), number(t2)) else {
+        return Err(malformed("the frame numbers are not finite numbers"));
+    };
+    // ICL-NUIM lists depth first; associate.py output lists colour first.
+    let depth_first = p1.contains("depth") || !p2.contains("depth");
+    let (depth, colour) = if depth_first { (p1, p2) } else { (p2, p1) };
+    Ok(FrameEntry {
+        index: 0,
+        timestamp: t1,
+        colour: Some(format!("{root_prefix}{colour}")),
+        depth: format!("{root_prefix}{depth}"),
+        confidence: None,
+        calibrated_size: None,
+        pose_file: None,
+        missing: None,
+    })
 }
 
 #[cfg(test)]

@@ -28,6 +28,7 @@ pub mod icl_nuim;
 mod lines;
 mod open;
 pub mod realsense;
+pub mod reference;
 pub mod seven_scenes;
 pub mod stray;
 pub mod trajectory;
@@ -82,6 +83,20 @@ pub enum DatasetError {
         /// 1-based line number.
         line_number: usize,
         /// The offending line (trimmed).
+        line: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The last line of a text file is malformed, as a row is that a
+    /// recording stopped while writing: skipped, a warning in
+    /// [`Sequence::warnings`] (never returned as an error).
+    #[error("{file}, line {line_number}: the last line is cut off, skipped ({reason}): `{line}`")]
+    CutOffLine {
+        /// The file being parsed.
+        file: String,
+        /// 1-based line number.
+        line_number: usize,
+        /// The cut-off line (trimmed).
         line: String,
         /// What is wrong with it.
         reason: String,
@@ -148,6 +163,23 @@ pub enum DatasetError {
         #[source]
         source: FrameError,
     },
+}
+
+impl DatasetError {
+    /// Whether this is an image that is there but does not decode (a
+    /// truncated or half-written PNG or JPEG, colour, depth or confidence):
+    /// what the last image of a recording stopped mid-write looks like.
+    /// The CLI skips such a last frame with a warning, not as a failure.
+    #[must_use]
+    pub fn is_undecodable_image(&self) -> bool {
+        matches!(
+            self,
+            Self::Frame {
+                source: FrameError::Decode { .. },
+                ..
+            } | Self::Confidence { .. }
+        )
+    }
 }
 
 /// Which published dataset layout a folder follows.
@@ -269,8 +301,10 @@ pub struct Sequence {
     /// forward). Not ground truth: a reference to compare with, which
     /// drifts too. Empty for other layouts.
     pub odometry: Vec<(f64, DAffine3)>,
-    /// Problems that did not stop the sequence (e.g. a 7-Scenes pose file that
-    /// could not be read: that frame has no ground truth).
+    /// Problems that did not stop the sequence: a 7-Scenes pose file that
+    /// could not be read (that frame has no ground truth), a cut-off last
+    /// row of an index or trajectory file ([`DatasetError::CutOffLine`]:
+    /// a recording stopped mid-write plays the rows it has).
     pub warnings: Vec<DatasetError>,
 }
 
@@ -463,9 +497,10 @@ pub fn parse_sequence(
         .collect();
     let mut intrinsics = None;
     let mut odometry = Vec::new();
+    let mut warnings = Vec::new();
     let (preset, frames, mut ground_truth) = match layout.kind {
         DatasetKind::Tum => {
-            let (frames, gt) = tum::parse(layout, &listing, index_texts)?;
+            let (frames, gt) = tum::parse(layout, &listing, index_texts, &mut warnings)?;
             let hint_texts = [
                 name_hint.unwrap_or(""),
                 layout.root_prefix.as_str(),
@@ -483,11 +518,11 @@ pub fn parse_sequence(
             (tum::preset_from_hints(&hint_texts), frames, gt)
         }
         DatasetKind::IclNuim => {
-            let (frames, gt) = icl_nuim::parse(layout, &listing, index_texts)?;
+            let (frames, gt) = icl_nuim::parse(layout, &listing, index_texts, &mut warnings)?;
             (CameraPreset::IclNuim, frames, gt)
         }
         DatasetKind::SevenScenes => {
-            let (frames, gt) = seven_scenes::parse(&listing, index_texts)?;
+            let (frames, gt) = seven_scenes::parse(&listing, index_texts, &mut warnings)?;
             (CameraPreset::SevenScenes, frames, gt)
         }
         DatasetKind::RealSense => {
@@ -496,7 +531,7 @@ pub fn parse_sequence(
             (CameraPreset::RealSenseD400, frames, Vec::new())
         }
         DatasetKind::StrayScanner => {
-            let parsed = stray::parse(layout, &listing, index_texts)?;
+            let parsed = stray::parse(layout, &listing, index_texts, &mut warnings)?;
             intrinsics = Some(parsed.intrinsics);
             odometry = parsed.odometry;
             (CameraPreset::StrayLidar, parsed.frames, Vec::new())
@@ -522,7 +557,7 @@ pub fn parse_sequence(
         frames,
         ground_truth,
         odometry,
-        warnings: Vec::new(),
+        warnings,
     })
 }
 

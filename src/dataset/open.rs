@@ -153,7 +153,8 @@ impl DatasetSource {
     }
 
     /// Detects the layout and parses the sequence. An optional file that
-    /// cannot be read (a 7-Scenes pose file) becomes a warning, not an error.
+    /// cannot be read (a 7-Scenes pose file) becomes a warning, not an error,
+    /// beside the parser's own ([`Sequence::warnings`]).
     pub fn sequence(&mut self) -> Result<Sequence, DatasetError> {
         let names = self.names()?;
         let layout = detect_layout(&names)?;
@@ -170,6 +171,8 @@ impl DatasetSource {
             }
         }
         let mut sequence = parse_sequence(&layout, &names, &texts, Some(&self.name_hint()))?;
+        // The files unread first, then what the parser skipped.
+        warnings.append(&mut sequence.warnings);
         sequence.warnings = warnings;
         Ok(sequence)
     }

@@ -42,10 +42,14 @@ pub fn pose_frame_number(file_name: &str) -> Option<u64> {
 /// Builds the frame list from the names and the ground truth from the pose
 /// texts given (each optional). A frame is any frame number with a colour or
 /// a depth image; when one of the two is absent the frame is kept with
-/// `missing` set (a half-copied folder).
+/// `missing` set (a half-copied folder). The last frame's pose file when
+/// malformed (half written: a recording cut short) leaves that frame
+/// without ground truth, a [`DatasetError::CutOffLine`] on `warnings`;
+/// any other malformed pose file is an error.
 pub(crate) fn parse(
     listing: &HashSet<&str>,
     texts: &HashMap<String, String>,
+    warnings: &mut Vec<DatasetError>,
 ) -> Result<Parsed, DatasetError> {
     // Sequence folder -> frame number -> (colour, depth) paths as listed.
     type Images<'a> = (Option<&'a str>, Option<&'a str>);
@@ -70,7 +74,8 @@ pub(crate) fn parse(
         }
     }
     let mut frames = Vec::new();
-    let mut ground_truth = Vec::new();
+    // (timestamp, pose file, its text), parsed once the last frame is known.
+    let mut poses: Vec<(f64, String, &str)> = Vec::new();
     let mut offset = 0.0_f64;
     for numbers in sequences.into_values() {
         let mut last = offset;
@@ -103,7 +108,7 @@ pub(crate) fn parse(
             let timestamp = offset + number as f64;
             last = timestamp;
             if let Some(text) = texts.get(&pose) {
-                ground_truth.push((timestamp, parse_pose_matrix(text, &pose)?));
+                poses.push((timestamp, pose.clone(), text));
             }
             frames.push(FrameEntry {
                 index: frames.len(),
@@ -117,6 +122,25 @@ pub(crate) fn parse(
             });
         }
         offset = last + 1.0;
+    }
+    let last_frame = frames.last().map(|f: &FrameEntry| f.timestamp);
+    let mut ground_truth = Vec::with_capacity(poses.len());
+    for (timestamp, file, text) in poses {
+        match parse_pose_matrix(text, &file) {
+            Ok(pose) => ground_truth.push((timestamp, pose)),
+            Err(DatasetError::MalformedLine {
+                file,
+                line_number,
+                line,
+                reason,
+            }) if Some(timestamp) == last_frame => warnings.push(DatasetError::CutOffLine {
+                file,
+                line_number,
+                line,
+                reason,
+            }),
+            Err(e) => return Err(e),
+        }
     }
     Ok((frames, ground_truth))
 }
@@ -244,6 +268,20 @@ mod tests {
         assert!(
             matches!(&err, DatasetError::MalformedLine { file, .. } if file == "chess/seq-01/frame-000000.pose.txt"),
             "{err:?}"
+        );
+        // The last frame's pose file half written: that frame has no
+        // ground truth, and a warning names the file.
+        texts.remove("chess/seq-01/frame-000000.pose.txt");
+        texts.insert(
+            "chess/seq-02/frame-000002.pose.txt".to_owned(),
+            "1 0 0 0\n0 1 0 2\n0 0".to_owned(),
+        );
+        let seq = parse_sequence(&layout, &names, &texts, None).expect("plays what it has");
+        assert_eq!(seq.ground_truth.len(), 2);
+        assert!(
+            matches!(&seq.warnings[..], [DatasetError::CutOffLine { file, line_number: 3, .. }] if file == "chess/seq-02/frame-000002.pose.txt"),
+            "{:?}",
+            seq.warnings
         );
     }
 

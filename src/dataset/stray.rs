@@ -22,6 +22,9 @@
 //!   sequence is depth only.
 //! - `imu.csv`: ignored.
 //!
+//! A cut-off last row of `odometry.csv` (the app stopped while writing it)
+//! is skipped with a warning ([`crate::dataset::Sequence::warnings`]).
+//!
 //! Frames are the depth images, in number order. A frame's timestamp is its
 //! odometry row's; exports often hold more depth images than odometry rows
 //! (942 against 854): a frame without a row gets a timestamp between its
@@ -34,7 +37,7 @@ use glam::{DAffine3, DQuat, DVec3};
 
 use crate::camera::Intrinsics;
 
-use super::lines::{content_lines, Line};
+use super::lines::{parse_rows, parse_rows_strict, Line};
 use super::{index_text, numbered_in, CalibratedSize, DatasetError, FrameEntry, Layout};
 
 /// Width of the colour images `camera_matrix.csv` is calibrated for, pixels.
@@ -72,11 +75,13 @@ pub(crate) struct Parsed {
 
 /// Builds the Stray Scanner frame list, the depth intrinsics and the
 /// odometry from `camera_matrix.csv` (`layout.index_files[0]`) and
-/// `odometry.csv` (`[1]`).
+/// `odometry.csv` (`[1]`); a cut-off last row of the odometry (the app
+/// stopped mid-write) is skipped onto `warnings`.
 pub(crate) fn parse(
     layout: &Layout,
     listing: &HashSet<&str>,
     texts: &HashMap<String, String>,
+    warnings: &mut Vec<DatasetError>,
 ) -> Result<Parsed, DatasetError> {
     let root = &layout.root_prefix;
     let missing_index = |name: &str| DatasetError::MissingFile {
@@ -91,8 +96,14 @@ pub(crate) fn parse(
         .index_files
         .get(1)
         .ok_or_else(|| missing_index("odometry.csv"))?;
-    let intrinsics = parse_camera_matrix(index_text(texts, matrix_name)?, matrix_name)?;
-    let rows = parse_odometry(index_text(texts, odometry_name)?, odometry_name)?;
+    let intrinsics = read_camera_matrix(index_text(texts, matrix_name)?, matrix_name, warnings)?;
+    let rows = parse_rows(
+        index_text(texts, odometry_name)?,
+        odometry_name,
+        true,
+        warnings,
+        odometry_row,
+    )?;
 
     let depth = numbered_in(listing, &format!("{root}depth/"), &["png"]);
     let confidence = numbered_in(listing, &format!("{root}confidence/"), &["png"]);
@@ -216,10 +227,37 @@ fn number(line: &Line<'_>, field: &str, what: &str) -> Result<f64, DatasetError>
 /// fy, cy from the second, scaled by 256 / 1920. The third row must hold
 /// three numbers, whatever they are. Errors name `file_name` and the line.
 pub fn parse_camera_matrix(text: &str, file_name: &str) -> Result<Intrinsics, DatasetError> {
-    let mut rows: Vec<[f64; 3]> = Vec::with_capacity(3);
+    let mut warnings = Vec::new();
+    let k = read_camera_matrix(text, file_name, &mut warnings)?;
+    match warnings.pop() {
+        Some(DatasetError::CutOffLine {
+            file,
+            line_number,
+            line,
+            reason,
+        }) => Err(DatasetError::MalformedLine {
+            file,
+            line_number,
+            line,
+            reason,
+        }),
+        Some(other) => Err(other),
+        None => Ok(k),
+    }
+}
+
+/// [`parse_camera_matrix`] for a recording: a cut-off third row (never
+/// read) is skipped onto `warnings`; a cut-off first or second row still
+/// leaves too few rows, an error.
+fn read_camera_matrix(
+    text: &str,
+    file_name: &str,
+    warnings: &mut Vec<DatasetError>,
+) -> Result<Intrinsics, DatasetError> {
     let mut last = Line::none(file_name);
-    for line in content_lines(text, file_name, true) {
-        if rows.len() == 3 {
+    let warned_before = warnings.len();
+    let rows = parse_rows(text, file_name, true, warnings, |i, line| {
+        if i == 3 {
             return Err(line.malformed("a 3x3 camera matrix has 3 rows; this is a 4th"));
         }
         let f = fields(&line);
@@ -230,18 +268,24 @@ pub fn parse_camera_matrix(text: &str, file_name: &str) -> Result<Intrinsics, Da
             )));
         };
         let what = "matrix entry";
-        rows.push([
+        let row = [
             number(&line, a, what)?,
             number(&line, b, what)?,
             number(&line, c, what)?,
-        ]);
+        ];
         last = line;
-    }
-    let [r0, r1, _] = rows[..] else {
-        return Err(last.malformed(&format!(
-            "expected the 3 rows of a 3x3 camera matrix, found {}",
-            rows.len()
-        )));
+        Ok(Some(row))
+    })?;
+    let (r0, r1) = match rows[..] {
+        [r0, r1, _] => (r0, r1),
+        // The third row cut off: it is not read.
+        [r0, r1] if warnings.len() > warned_before => (r0, r1),
+        _ => {
+            return Err(last.malformed(&format!(
+                "expected the 3 rows of a 3x3 camera matrix, found {}",
+                rows.len()
+            )))
+        }
     };
     let s = DEPTH_WIDTH as f64 / COLOUR_WIDTH as f64;
     let k = Intrinsics::new(
@@ -266,43 +310,46 @@ pub fn parse_camera_matrix(text: &str, file_name: &str) -> Result<Intrinsics, Da
 /// 15 comma-separated fields (the 6 more not read and possibly empty).
 /// Quaternions are normalised. A row with another number of fields, a
 /// non-numeric or non-finite value, a frame that is not a whole number or a
-/// zero quaternion is a `MalformedLine` naming `file_name` and the line.
+/// zero quaternion is a `MalformedLine` naming `file_name` and the line
+/// (the last one too: a sequence skips a cut-off last row, this does not).
 pub fn parse_odometry(text: &str, file_name: &str) -> Result<Vec<OdometryRow>, DatasetError> {
-    let mut out = Vec::new();
-    for (i, line) in content_lines(text, file_name, true).enumerate() {
-        let f = fields(&line);
-        let header = f.first().is_some_and(|h| h.parse::<f64>().is_err());
-        if i == 0 && header {
-            continue;
-        }
-        if f.len() != 9 && f.len() != 15 {
-            return Err(line.malformed(&format!(
-                "expected 9 fields `timestamp, frame, x, y, z, qx, qy, qz, qw` (or 15, with \
-                 `fx, fy, cx, cy, distortion_center_x, distortion_center_y`), found {}",
-                f.len()
-            )));
-        }
-        let names = ["timestamp", "frame", "x", "y", "z", "qx", "qy", "qz", "qw"];
-        let mut v = [0.0_f64; 9];
-        for ((slot, field), name) in v.iter_mut().zip(&f).zip(names) {
-            *slot = number(&line, field, name)?;
-        }
-        let [t, frame, x, y, z, qx, qy, qz, qw] = v;
-        if frame < 0.0 || frame.fract() != 0.0 || frame > 1e15 {
-            return Err(line.malformed("the frame number is not a whole number >= 0"));
-        }
-        let q = DQuat::from_xyzw(qx, qy, qz, qw);
-        let norm = q.length();
-        if norm <= 1e-9 {
-            return Err(line.malformed("zero quaternion"));
-        }
-        out.push(OdometryRow {
-            timestamp: t,
-            frame: frame as u64,
-            world_from_camera: DAffine3::from_rotation_translation(q / norm, DVec3::new(x, y, z)),
-        });
+    parse_rows_strict(text, file_name, true, odometry_row)
+}
+
+/// One row of `odometry.csv` (`i`: its place among the content lines;
+/// `None` for the header).
+fn odometry_row(i: usize, line: Line<'_>) -> Result<Option<OdometryRow>, DatasetError> {
+    let f = fields(&line);
+    let header = f.first().is_some_and(|h| h.parse::<f64>().is_err());
+    if i == 0 && header {
+        return Ok(None);
     }
-    Ok(out)
+    if f.len() != 9 && f.len() != 15 {
+        return Err(line.malformed(&format!(
+            "expected 9 fields `timestamp, frame, x, y, z, qx, qy, qz, qw` (or 15, with \
+             `fx, fy, cx, cy, distortion_center_x, distortion_center_y`), found {}",
+            f.len()
+        )));
+    }
+    let names = ["timestamp", "frame", "x", "y", "z", "qx", "qy", "qz", "qw"];
+    let mut v = [0.0_f64; 9];
+    for ((slot, field), name) in v.iter_mut().zip(&f).zip(names) {
+        *slot = number(&line, field, name)?;
+    }
+    let [t, frame, x, y, z, qx, qy, qz, qw] = v;
+    if frame < 0.0 || frame.fract() != 0.0 || frame > 1e15 {
+        return Err(line.malformed("the frame number is not a whole number >= 0"));
+    }
+    let q = DQuat::from_xyzw(qx, qy, qz, qw);
+    let norm = q.length();
+    if norm <= 1e-9 {
+        return Err(line.malformed("zero quaternion"));
+    }
+    Ok(Some(OdometryRow {
+        timestamp: t,
+        frame: frame as u64,
+        world_from_camera: DAffine3::from_rotation_translation(q / norm, DVec3::new(x, y, z)),
+    }))
 }
 
 #[cfg(test)]
@@ -438,5 +485,51 @@ mod tests {
                 "{needle}: {err}"
             );
         }
+    }
+
+    #[test]
+    fn a_cut_off_third_camera_matrix_row_is_not_needed() {
+        let mut warnings = Vec::new();
+        let k = read_camera_matrix(
+            "1597.4, 0.0, 959.8\n0.0, 1597.4, 722.2\n0.0, 0.",
+            "m.csv",
+            &mut warnings,
+        )
+        .expect("rows 1 and 2 are read");
+        assert!((k.fx - 1597.4 * 256.0 / 1920.0).abs() < 1e-3);
+        assert_eq!(warnings.len(), 1);
+        let err = read_camera_matrix("1597.4, 0.0, 959.8\n0.0, 1597", "m.csv", &mut warnings)
+            .expect_err("the second row is needed");
+        assert!(err.to_string().contains("found 1"), "{err}");
+    }
+
+    #[test]
+    fn a_cut_off_last_odometry_row_is_skipped_with_one_warning() {
+        let names = names(6, None);
+        let layout = detect_layout(&names).expect("Stray");
+        let mut texts = texts();
+        // The app stopped mid-row: 8 of the 15 fields, no newline.
+        let cut = format!("{ODOMETRY}10.4, 4, 0.4, 0.0, 0.0, 0.0, 0.0, 0.0");
+        texts.insert("s/odometry.csv".to_owned(), cut);
+        let seq = parse_sequence(&layout, &names, &texts, None).expect("plays what it has");
+        assert_eq!(seq.frames.len(), 6);
+        assert_eq!(seq.odometry.len(), 3);
+        assert_eq!(seq.warnings.len(), 1, "{:?}", seq.warnings);
+        let text = seq.warnings[0].to_string();
+        assert!(
+            text.starts_with("s/odometry.csv, line 5: the last line is cut off"),
+            "{text}"
+        );
+        // The same row in the middle is not a cut-off recording.
+        let middle = format!(
+            "timestamp, frame\n10.4, 4, 0.4\n{}",
+            &ODOMETRY[ODOMETRY.find('\n').unwrap_or(0) + 1..]
+        );
+        texts.insert("s/odometry.csv".to_owned(), middle);
+        let err = parse_sequence(&layout, &names, &texts, None).expect_err("malformed");
+        assert!(
+            matches!(err, DatasetError::MalformedLine { line_number: 2, .. }),
+            "{err}"
+        );
     }
 }

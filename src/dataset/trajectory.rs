@@ -5,7 +5,7 @@
 
 use glam::{DAffine3, DQuat, DVec3};
 
-use super::lines::content_lines;
+use super::lines::{parse_rows, parse_rows_strict, Line};
 use super::DatasetError;
 use crate::se3::unit_quaternion;
 
@@ -31,34 +31,49 @@ pub fn format_tum(poses: &[(f64, DAffine3)]) -> String {
 /// or a line without exactly 8 numbers is a `MalformedLine` naming
 /// `file_name` and the 1-based line number.
 pub fn parse_tum(text: &str, file_name: &str) -> Result<Vec<(f64, DAffine3)>, DatasetError> {
-    let mut out = Vec::new();
-    for line in content_lines(text, file_name, true) {
-        let malformed = |reason: &str| line.malformed(reason);
-        let values: Vec<f64> = line
-            .tokens()
-            .map(|t| t.parse::<f64>().ok())
-            .collect::<Option<Vec<f64>>>()
-            .ok_or_else(|| malformed("expected numbers `timestamp tx ty tz qx qy qz qw`"))?;
-        let [t, tx, ty, tz, qx, qy, qz, qw] = values[..] else {
-            return Err(malformed(&format!(
-                "expected 8 numbers `timestamp tx ty tz qx qy qz qw`, found {}",
-                values.len()
-            )));
-        };
-        if !values.iter().all(|v| v.is_finite()) {
-            return Err(malformed("non-finite number"));
-        }
-        let q = DQuat::from_xyzw(qx, qy, qz, qw);
-        let norm = q.length();
-        if norm <= 1e-9 {
-            return Err(malformed("zero quaternion"));
-        }
-        out.push((
-            t,
-            DAffine3::from_rotation_translation(q / norm, DVec3::new(tx, ty, tz)),
-        ));
+    parse_rows_strict(text, file_name, true, |_, line| tum_row(&line).map(Some))
+}
+
+/// [`parse_tum`] for a recording's trajectory (a dataset's ground truth, a
+/// reference written beside a recording): a malformed last line, cut off
+/// when the recording stopped, is skipped and pushed onto `warnings` as
+/// [`DatasetError::CutOffLine`].
+pub fn read_tum(
+    text: &str,
+    file_name: &str,
+    warnings: &mut Vec<DatasetError>,
+) -> Result<Vec<(f64, DAffine3)>, DatasetError> {
+    parse_rows(text, file_name, true, warnings, |_, line| {
+        tum_row(&line).map(Some)
+    })
+}
+
+/// One `timestamp tx ty tz qx qy qz qw` line.
+fn tum_row(line: &Line<'_>) -> Result<(f64, DAffine3), DatasetError> {
+    let malformed = |reason: &str| line.malformed(reason);
+    let values: Vec<f64> = line
+        .tokens()
+        .map(|t| t.parse::<f64>().ok())
+        .collect::<Option<Vec<f64>>>()
+        .ok_or_else(|| malformed("expected numbers `timestamp tx ty tz qx qy qz qw`"))?;
+    let [t, tx, ty, tz, qx, qy, qz, qw] = values[..] else {
+        return Err(malformed(&format!(
+            "expected 8 numbers `timestamp tx ty tz qx qy qz qw`, found {}",
+            values.len()
+        )));
+    };
+    if !values.iter().all(|v| v.is_finite()) {
+        return Err(malformed("non-finite number"));
     }
-    Ok(out)
+    let q = DQuat::from_xyzw(qx, qy, qz, qw);
+    let norm = q.length();
+    if norm <= 1e-9 {
+        return Err(malformed("zero quaternion"));
+    }
+    Ok((
+        t,
+        DAffine3::from_rotation_translation(q / norm, DVec3::new(tx, ty, tz)),
+    ))
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::lines::content_lines;
+use super::lines::{parse_rows, parse_rows_strict, Line};
 use super::{
     base_name, check_listed, index_text, trajectory, DatasetError, FrameEntry, Layout, Parsed,
 };
@@ -19,23 +19,36 @@ use crate::camera::CameraPreset;
 pub const MAX_ASSOCIATION_DT_S: f64 = 0.02;
 
 /// Parses a TUM file list (`rgb.txt`, `depth.txt`): `(timestamp s, path)` in
-/// file order; `#` comments and blank lines skipped.
+/// file order; `#` comments and blank lines skipped; every line must parse.
 pub fn parse_file_list(text: &str, file_name: &str) -> Result<Vec<(f64, String)>, DatasetError> {
-    let mut out = Vec::new();
-    for line in content_lines(text, file_name, true) {
-        let malformed = |reason: &str| line.malformed(reason);
-        let mut tokens = line.tokens();
-        let (Some(t), Some(path)) = (tokens.next(), tokens.next()) else {
-            return Err(malformed("expected `timestamp path`"));
-        };
-        let timestamp: f64 = t
-            .parse()
-            .ok()
-            .filter(|v: &f64| v.is_finite())
-            .ok_or_else(|| malformed("the timestamp is not a finite number"))?;
-        out.push((timestamp, path.to_owned()));
-    }
-    Ok(out)
+    parse_rows_strict(text, file_name, true, |_, line| file_row(&line).map(Some))
+}
+
+/// [`parse_file_list`] for a recording: a cut-off last line is skipped and
+/// pushed onto `warnings` ([`super::lines::parse_rows`]).
+fn read_file_list(
+    text: &str,
+    file_name: &str,
+    warnings: &mut Vec<DatasetError>,
+) -> Result<Vec<(f64, String)>, DatasetError> {
+    parse_rows(text, file_name, true, warnings, |_, line| {
+        file_row(&line).map(Some)
+    })
+}
+
+/// One `timestamp path` line of a file list.
+fn file_row(line: &Line<'_>) -> Result<(f64, String), DatasetError> {
+    let malformed = |reason: &str| line.malformed(reason);
+    let mut tokens = line.tokens();
+    let (Some(t), Some(path)) = (tokens.next(), tokens.next()) else {
+        return Err(malformed("expected `timestamp path`"));
+    };
+    let timestamp: f64 = t
+        .parse()
+        .ok()
+        .filter(|v: &f64| v.is_finite())
+        .ok_or_else(|| malformed("the timestamp is not a finite number"))?;
+    Ok((timestamp, path.to_owned()))
 }
 
 /// Associates two timestamp lists (same unit) as TUM's `associate.py`:
@@ -110,11 +123,13 @@ fn find<'a>(layout: &'a Layout, base: &str) -> Option<&'a str> {
         .find(|f| base_name(f) == base)
 }
 
-/// Builds the TUM frame list and ground truth from the layout's index texts.
+/// Builds the TUM frame list and ground truth from the layout's index texts;
+/// a cut-off last line of any of them is skipped onto `warnings`.
 pub(crate) fn parse(
     layout: &Layout,
     listing: &HashSet<&str>,
     texts: &HashMap<String, String>,
+    warnings: &mut Vec<DatasetError>,
 ) -> Result<Parsed, DatasetError> {
     let missing = |name: &str| DatasetError::MissingFile {
         path: format!("{}{name}", layout.root_prefix),
@@ -122,8 +137,8 @@ pub(crate) fn parse(
     };
     let rgb_name = find(layout, "rgb.txt").ok_or_else(|| missing("rgb.txt"))?;
     let depth_name = find(layout, "depth.txt").ok_or_else(|| missing("depth.txt"))?;
-    let rgb = parse_file_list(index_text(texts, rgb_name)?, rgb_name)?;
-    let depth = parse_file_list(index_text(texts, depth_name)?, depth_name)?;
+    let rgb = read_file_list(index_text(texts, rgb_name)?, rgb_name, warnings)?;
+    let depth = read_file_list(index_text(texts, depth_name)?, depth_name, warnings)?;
     let rgb_t: Vec<f64> = rgb.iter().map(|r| r.0).collect();
     let depth_t: Vec<f64> = depth.iter().map(|d| d.0).collect();
     let mut frames = Vec::new();
@@ -144,7 +159,7 @@ pub(crate) fn parse(
         });
     }
     let ground_truth = match find(layout, "groundtruth.txt") {
-        Some(name) => trajectory::parse_tum(index_text(texts, name)?, name)?,
+        Some(name) => trajectory::read_tum(index_text(texts, name)?, name, warnings)?,
         None => Vec::new(),
     };
     Ok((frames, ground_truth))
@@ -243,12 +258,24 @@ mod tests {
         texts.insert("depth.txt".to_owned(), "1 depth/1.png\n".to_owned());
         texts.insert(
             "groundtruth.txt".to_owned(),
-            "# header\n1 0 0 0 0 0 0 1\n2 0 0 zero 0 0 0 1\n".to_owned(),
+            "# header\n1 0 0 0 0 0 0 1\n2 0 0 zero 0 0 0 1\n3 0 0 0 0 0 0 1\n".to_owned(),
         );
         let err = parse_sequence(&layout, &names, &texts, None).expect_err("bad gt");
         assert!(
             matches!(&err, DatasetError::MalformedLine { line_number: 3, file, .. } if file == "groundtruth.txt"),
             "{err:?}"
+        );
+        // The same line last: a recording cut short, skipped with a warning.
+        texts.insert(
+            "groundtruth.txt".to_owned(),
+            "# header\n1 0 0 0 0 0 0 1\n2 0 0 zero".to_owned(),
+        );
+        let seq = parse_sequence(&layout, &names, &texts, None).expect("plays what it has");
+        assert_eq!(seq.ground_truth.len(), 1);
+        assert!(
+            matches!(&seq.warnings[..], [DatasetError::CutOffLine { line_number: 3, file, .. }] if file == "groundtruth.txt"),
+            "{:?}",
+            seq.warnings
         );
         assert_eq!(
             parse_sequence(&layout, &names, &HashMap::new(), None).expect_err("no texts"),

@@ -28,7 +28,7 @@ export interface FrameReport {
   timestamp: number;
   /** 'recovered': re-acquired against the map after a loss (fused); while localising, placed by relocalisation. 'unplaced' (localising only): not found in the loaded map, no pose (pose, translation and quaternion are null). 'held': fused, but the geometry left some directions of motion free (a flat wall) and the pose was held at the motion prior in those. 'restarted': lost for restartAfterLost frames in a row, fused at the last placed pose as the first frame of a new segment of the map; the map so far is kept but not tracked against until a frame of the segment is placed in it (loopDecision then says 'joined' and loopClosed is true: the segment moved onto it). */
   verdict: 'initialised' | 'tracked' | 'recovered' | 'held' | 'lost' | 'restarted' | 'unplaced';
-  lostReason: null | 'too-few-inliers' | 'high-residual' | 'ill-conditioned' | 'implausible-motion';
+  lostReason: null | 'too-few-inliers' | 'high-residual' | 'ill-conditioned' | 'implausible-motion' | 'inconsistent';
   /** world_from_camera, 4x4 column-major, metres; null for an 'unplaced' frame. */
   pose: Float64Array | null;
   translation: [number, number, number] | null;
@@ -115,6 +115,20 @@ export interface Sequence {
   odometry: number[][];
   /** The odometry as TUM text, '' when there is none. */
   odometryTum: string;
+  /** What was skipped but did not stop the sequence, each naming its file (and line): a cut-off last row of an index or trajectory file (a recording stopped mid-write plays the rows it has), a 7-Scenes pose file unread. Show them; [] when none. */
+  warnings: string[];
+}
+
+/** A reference trajectory the user brings, parsed by parseReference. */
+export interface ParsedReference {
+  /** How its rows name frames: 'frame' (a CSV `frame` column: 0-based position in the sequence) or 'timestamp' (TUM text, or a CSV `timestamp` column). */
+  key: 'frame' | 'timestamp';
+  /** [key, tx, ty, tz, qx, qy, qz, qw] rows, world_from_camera, as in the file. */
+  poses: number[][];
+  /** The reference as TUM text in the sequence's time (frame numbers turned into `frameTimestamps`' when given), for `slam.ate(tum)` / `ateTum`. */
+  tum: string;
+  /** A cut-off last row skipped, naming the file and line; [] when none. */
+  warnings: string[];
 }
 
 /** Absolute trajectory error after rigid alignment, metres. */

@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 
-use js_sys::{Array, Reflect};
+use js_sys::{Array, Float64Array, Reflect};
 use wasm_bindgen::prelude::*;
 
 use super::convert::{ate_to_js, kind_name, max_dt_from_js, object, strings_from_js, tum_row};
@@ -47,8 +47,9 @@ pub fn detect_layout(
 /// `intrinsics` `{fx, fy, cx, cy, width, height}` from the folder's
 /// calibration file (RealSense, Stray Scanner) or null; `odometry` the
 /// device's own trajectory (Stray Scanner), not ground truth; the `...Tum`
-/// fields as TUM text, `''` when empty). Throws when no frame has all its
-/// images.
+/// fields as TUM text, `''` when empty; `warnings` what was skipped but did
+/// not stop the sequence, e.g. a cut-off last row, each naming its file and
+/// line). Throws when no frame has all its images.
 #[wasm_bindgen(js_name = parseSequence, unchecked_return_type = "Sequence")]
 pub fn parse_sequence(
     #[wasm_bindgen(js_name = "fileNames", unchecked_param_type = "string[]")] file_names: JsValue,
@@ -113,6 +114,68 @@ pub fn parse_sequence(
         ("groundTruthTum", tum_text(&seq.ground_truth).into()),
         ("odometry", odometry.into()),
         ("odometryTum", tum_text(&seq.odometry).into()),
+        ("warnings", messages(&seq.warnings).into()),
+    ])
+    .into())
+}
+
+/// Each warning's message, as a JS array of strings.
+fn messages(warnings: &[dataset::DatasetError]) -> Array {
+    warnings
+        .iter()
+        .map(|w| JsValue::from_str(&w.to_string()))
+        .collect()
+}
+
+/// `parseReference(text, fileName = 'reference', frameTimestamps?)`: a
+/// reference trajectory the user brings (TUM text, or CSV with a header
+/// `frame, x, y, z, qx, qy, qz, qw` or `timestamp, x, ...`), as `run
+/// --reference` reads it. Returns `{ key: 'frame' | 'timestamp', poses,
+/// tum, warnings }`: `poses` the rows `[key, tx, ty, tz, qx, qy, qz, qw]`;
+/// `tum` the poses as TUM text in the sequence's time (with
+/// `frameTimestamps`, the sequence's frames' timestamps in order, a frame
+/// number becomes its frame's timestamp and rows past the frames are left
+/// out; without it, frame numbers stay as they are), for `slam.ate(tum)`;
+/// `warnings` a cut-off last row skipped. Throws, naming the file and line,
+/// on a file that cannot be read.
+#[wasm_bindgen(js_name = parseReference, unchecked_return_type = "ParsedReference")]
+pub fn parse_reference(
+    text: &str,
+    #[wasm_bindgen(js_name = "fileName")] file_name: Option<String>,
+    #[wasm_bindgen(
+        js_name = "frameTimestamps",
+        unchecked_optional_param_type = "ArrayLike<number>"
+    )]
+    frame_timestamps: JsValue,
+) -> Result<JsValue, JsError> {
+    let name = file_name.unwrap_or_else(|| "reference".to_owned());
+    let reference = dataset::reference::parse_reference(text, &name)?;
+    let stamped = if frame_timestamps.is_undefined() || frame_timestamps.is_null() {
+        reference.poses.clone()
+    } else if Array::is_array(&frame_timestamps)
+        || frame_timestamps.is_instance_of::<Float64Array>()
+    {
+        reference.at_timestamps(&Float64Array::new(&frame_timestamps).to_vec())
+    } else {
+        return Err(JsError::new(
+            "frameTimestamps must be an array of the sequence's frame timestamps",
+        ));
+    };
+    let poses: Array = reference
+        .poses
+        .iter()
+        .map(|(t, pose)| tum_row(*t, pose))
+        .collect();
+    let tum = if stamped.is_empty() {
+        String::new()
+    } else {
+        dataset::trajectory::format_tum(&stamped)
+    };
+    Ok(object(&[
+        ("key", reference.key.name().into()),
+        ("poses", poses.into()),
+        ("tum", tum.into()),
+        ("warnings", messages(&reference.warnings).into()),
     ])
     .into())
 }

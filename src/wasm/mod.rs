@@ -5,7 +5,7 @@
 //! exactly (`Slam`, `pushFrame`, `positions`, `detectLayout`, ...).
 //!
 //! - [`slam`]: the `Slam` class (frames in, reports and zero-copy surfel views out).
-//! - [`dataset`]: `detectLayout`, `parseSequence`, `ateTum` (the CLI's parsers).
+//! - [`dataset`]: `detectLayout`, `parseSequence`, `parseReference`, `ateTum` (the CLI's parsers).
 //! - [`archive`]: the `ArchiveReader` class (datasets in .zip / .tar / .tar.gz).
 //! - [`flow`]: the `OpticalFlow` class (Lucas-Kanade tracks for the page's overlay).
 //! - [`session`]: `Slam.load`'s options and session errors as JS errors.
@@ -29,7 +29,7 @@ pub mod slam;
 use wasm_bindgen::prelude::*;
 
 pub use archive::ArchiveReader;
-pub use dataset::{ate_tum, detect_layout, parse_sequence};
+pub use dataset::{ate_tum, detect_layout, parse_reference, parse_sequence};
 pub use flow::OpticalFlow;
 pub use slam::Slam;
 

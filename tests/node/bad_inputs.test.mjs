@@ -114,7 +114,13 @@ test('bad frames and settings throw a clear Error; the Slam keeps working', { sk
   assert.equal(halfCopied.frames[0].missing, null);
   const noDepth = names.filter((n) => !n.startsWith('teddy/depth/'));
   expectThrow('every frame misses a file listed in an index', () => m.parseSequence(noDepth, texts, 'teddy'), /none of the 3 frames listed can be read: teddy\/depth\/\S+\.png is missing \(listed in teddy\/depth\.txt\)/);
-  const badGt = { ...texts, 'teddy/groundtruth.txt': texts['teddy/groundtruth.txt'] + '\n1341841873.5 1.0 2.0 oops 0 0 0 1' };
+  const oops = '\n1341841873.5 1.0 2.0 oops 0 0 0 1';
+  const lastGt = rows('groundtruth.txt')[20];
+  const badGt = { ...texts, 'teddy/groundtruth.txt': `${texts['teddy/groundtruth.txt']}${oops}\n${lastGt}` };
   expectThrow('malformed ground-truth line', () => m.parseSequence(names, badGt, 'teddy'), /groundtruth\.txt, line 21: .*oops/);
+  // The same line last is a recording cut short: skipped, with a warning naming it.
+  const cutGt = m.parseSequence(names, { ...texts, 'teddy/groundtruth.txt': texts['teddy/groundtruth.txt'] + oops }, 'teddy');
+  assert.equal(cutGt.groundTruth.length, 20);
+  assert.deepEqual(cutGt.warnings.map((w) => w.replace(/:.*/, '')), ['teddy/groundtruth.txt, line 21']);
   t.diagnostic(`wasm API answers:\n${answers.join('\n')}`);
 });

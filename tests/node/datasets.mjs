@@ -307,6 +307,33 @@ export function makeSevenScenes(src, frames, parent, name = 'seven_scenes_teddy'
 }
 
 /**
+ * An ICL-NUIM "frei_png" folder `<parent>/<name>/` from the first `frames`
+ * frames of the TUM folder `src` that have a ground-truth pose:
+ * `rgb/N.png` and `depth/N.png` copied (both 5000 units a metre, as
+ * ICL-NUIM's), `associations.txt` listing `N depth/N.png N rgb/N.png`, and
+ * `traj0.gt.freiburg`, the truth stamped with the frame numbers N (from 1,
+ * as ICL-NUIM's). The images are TUM's, so the ICL-NUIM preset (fy = -480)
+ * is the wrong camera for them: a layout to read, not a scene to track
+ * well. Returns the folder.
+ */
+export function makeIclNuim(src, frames, parent, name = 'icl_teddy') {
+  const dir = path.join(parent, name);
+  for (const sub of ['rgb', 'depth']) fs.mkdirSync(path.join(dir, sub), { recursive: true });
+  let associations = '';
+  let truth = '';
+  alignedFrames(src, frames).forEach(({ colour, depth, pose }, i) => {
+    const n = i + 1;
+    fs.copyFileSync(path.join(src, colour), path.join(dir, 'rgb', `${n}.png`));
+    fs.copyFileSync(path.join(src, depth), path.join(dir, 'depth', `${n}.png`));
+    associations += `${n} depth/${n}.png ${n} rgb/${n}.png\n`;
+    truth += `${n} ${pose.slice(1).join(' ')}\n`;
+  });
+  fs.writeFileSync(path.join(dir, 'associations.txt'), associations);
+  fs.writeFileSync(path.join(dir, 'traj0.gt.freiburg'), truth);
+  return dir;
+}
+
+/**
  * A RealSense folder as Open3D's recorder writes it, `<parent>/<name>/`, from
  * the first `frames` frames of the TUM folder `src` (Freiburg 3) that have a
  * ground-truth pose: `color/NNNNNN.png` copied, `depth/NNNNNN.png` in

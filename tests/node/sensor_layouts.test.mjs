@@ -63,9 +63,18 @@ test('a Stray Scanner export: scaled intrinsics, confidence, depth only, odometr
   // Odometry is the device's, not ground truth.
   assert.equal(seq.groundTruth.length, 0);
   assert.equal(seq.odometry.length, frames - 1);
-  // A missing column is refused, naming the file.
-  const short = 'timestamp, frame, x, y, z, qx, qy, qz, qw\n10, 0, 0, 0, 0, 0, 0, 1\n';
-  assert.throws(() => m.parseSequence(names, { ...texts, 's/odometry.csv': short }, 's'), /odometry\.csv/);
+  // A missing column is refused, naming the file and the line ...
+  const header = 'timestamp, frame, x, y, z, qx, qy, qz, qw\n';
+  const short = `${header}10, 0, 0, 0, 0, 0, 0, 1\n10.1, 1, 0, 0, 0, 0, 0, 0, 1\n`;
+  assert.throws(() => m.parseSequence(names, { ...texts, 's/odometry.csv': short }, 's'), /odometry\.csv, line 2: /);
+  // ... but on the last row it is a recording cut short: skipped, one warning naming both.
+  const cut = `${header}10, 0, 0, 0, 0, 0, 0, 0, 1\n10.1, 1, 0, 0, 0, 0`;
+  const cutSeq = m.parseSequence(names, { ...texts, 's/odometry.csv': cut }, 's');
+  assert.equal(cutSeq.odometry.length, 1);
+  assert.equal(cutSeq.frames.length, frames);
+  assert.equal(cutSeq.warnings.length, 1, JSON.stringify(cutSeq.warnings));
+  assert.match(cutSeq.warnings[0], /^s\/odometry\.csv, line 3: the last line is cut off/);
+  assert.deepEqual(seq.warnings, []);
 });
 
 test('pushFiles: a Stray frame pushed as its files, depth only with confidence; bad files named, nothing changed', { skip }, async () => {

@@ -47,6 +47,31 @@ test('Slam.ate scores the trajectory against the ground truth', { skip, timeout:
     assert.ok(slam.ate(gt, 0.005).pairs < direct.pairs);
     assert.throws(() => slam.ate(gt, -1), /maxDt must be a non-negative number/);
     assert.throws(() => slam.ate('1 2 3\n'), /ground truth/);
+
+    // parseReference (the page's "reference...", the CLI's run --reference): the
+    // ground truth brought as TUM text, and as a frame-number CSV of each
+    // frame's nearest truth pose (a cut-off last row: one warning), scores
+    // as the ground truth does.
+    const tumRef = m.parseReference(gt, 'groundtruth.txt');
+    assert.equal(tumRef.key, 'timestamp');
+    assert.deepEqual(tumRef.warnings, []);
+    assert.ok(Math.abs(slam.ate(tumRef.tum).rmse - direct.rmse) < 1e-7);
+    const truth = rows('groundtruth.txt').map((r) => r.map(Number));
+    const stamps = rgb.slice(0, FRAMES).map((r) => Number(r[0]));
+    let csv = 'frame, x, y, z, qx, qy, qz, qw\n';
+    stamps.forEach((t, i) => {
+      const near = truth.reduce((a, b) => (Math.abs(b[0] - t) < Math.abs(a[0] - t) ? b : a));
+      if (Math.abs(near[0] - t) <= 0.02) csv += `${i}, ${near.slice(1).join(', ')}\n`;
+    });
+    const frameRef = m.parseReference(`${csv}${FRAMES}, 0.1, 0.2`, 'ref.csv', stamps);
+    assert.equal(frameRef.key, 'frame');
+    assert.equal(frameRef.warnings.length, 1);
+    assert.match(frameRef.warnings[0], /^ref\.csv, line \d+: the last line is cut off/);
+    assert.equal(frameRef.poses.length, direct.pairs);
+    const byFrame = slam.ate(frameRef.tum);
+    assert.equal(byFrame.pairs, direct.pairs);
+    assert.ok(Math.abs(byFrame.rmse - direct.rmse) < 1e-7, `${byFrame.rmse} vs ${direct.rmse}`);
+    assert.throws(() => m.parseReference('x, y\n1, 2\n', 'bad.csv'), /bad\.csv, line 1: .*frame/);
   } finally {
     slam.free();
   }
