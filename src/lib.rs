@@ -18,6 +18,7 @@ pub mod eval;
 pub mod features;
 pub mod flow;
 pub mod frame;
+pub mod imu;
 pub mod fusion;
 pub mod loop_closure;
 pub mod mesh;

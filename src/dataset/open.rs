@@ -170,6 +170,7 @@ impl DatasetSource {
             }
         }
         let mut sequence = parse_sequence(&layout, &names, &texts, Some(&self.name_hint()))?;
+        warnings.append(&mut sequence.warnings);
         sequence.warnings = warnings;
         Ok(sequence)
     }

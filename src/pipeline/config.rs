@@ -205,6 +205,9 @@ pub enum PipelineError {
     /// The frame's timestamp is NaN or infinite (seconds or frame number).
     #[error("timestamp must be a finite number, got {0}")]
     InvalidTimestamp(f64),
+    /// IMU samples were refused ([`crate::Pipeline::push_imu`]).
+    #[error(transparent)]
+    Imu(#[from] crate::imu::ImuError),
 }
 
 /// Refuses a NaN or infinite timestamp: it would end up in the trajectory

@@ -13,6 +13,7 @@
 mod carried;
 mod config;
 mod finish;
+mod imu;
 mod input;
 mod localise;
 mod loop_stage;
@@ -130,6 +131,8 @@ pub struct Pipeline {
     /// before the loss (working colour and camera-frame points), whose
     /// view of the map the segment is looked for in first.
     lost_frame: Option<Box<LastFusedFrame<Vec<u8>, Vec<glam::Vec3>>>>,
+    /// IMU samples, the frames' rotations and the calibration (`imu.rs`).
+    imu: imu::ImuState,
 }
 
 impl Pipeline {
@@ -183,6 +186,7 @@ impl Pipeline {
             localising: None,
             segment: Segment::default(),
             lost_frame: None,
+            imu: imu::ImuState::default(),
         })
     }
 
@@ -284,6 +288,7 @@ impl Pipeline {
         self.camera_fixed = CameraFixedMask::default();
         self.segment = Segment::default();
         self.lost_frame = None;
+        self.reset_imu();
     }
 
     /// Processes one decoded frame stamped `timestamp` (seconds or frame
@@ -399,6 +404,7 @@ impl Pipeline {
         }
         let t4 = now_ms();
         self.count_verdict(tracked.verdict);
+        self.observe_imu(timestamp, &as_tracked, tracked.verdict);
         self.trajectory.push((timestamp, tracked.pose));
         self.online_trajectory.push((timestamp, as_tracked));
         self.frame_index += 1;

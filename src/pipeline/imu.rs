@@ -1,0 +1,132 @@
+//! The IMU in the pipeline: samples pushed at any time, the calibration
+//! found from the tracked frames once they turned enough, and the rotation
+//! prior the tracker asks for between two frame times.
+//!
+//! Nothing here changes a frame's tracking: the prior is offered
+//! ([`Pipeline::imu_rotation_prior`]), not applied. The state is not saved
+//! in sessions: a loaded session calibrates again from the frames pushed
+//! after it (it needs samples of those times anyway).
+
+use glam::DQuat;
+
+use super::{Pipeline, PipelineError, Verdict};
+use crate::imu::{calibrate, CalibrationRefusal, FramePose, ImuBuffer, ImuCalibration, ImuSample};
+
+/// Frames whose rotations the calibration is tried on: the last 600 (10 s
+/// at 60 Hz), so that a start that barely turns is outgrown.
+const CALIBRATION_FRAMES: usize = 600;
+/// Frames between two calibration attempts (an attempt fits every pair
+/// at 140 offsets: a few milliseconds).
+const CALIBRATE_EVERY_FRAMES: u32 = 10;
+
+/// What the pipeline keeps of the IMU.
+#[derive(Debug, Clone, Default)]
+pub(super) struct ImuState {
+    buffer: ImuBuffer,
+    /// The frames' rotations since the first (at most about
+    /// [`CALIBRATION_FRAMES`] of them), until calibrated.
+    frames: Vec<FramePose>,
+    calibration: Option<ImuCalibration>,
+    /// Why the last attempt gave no calibration.
+    refusal: Option<CalibrationRefusal>,
+    since_attempt: u32,
+}
+
+impl ImuState {
+    /// Records a frame's pose; tries to calibrate every
+    /// [`CALIBRATE_EVERY_FRAMES`] frames while there are samples.
+    fn observe(&mut self, frame: FramePose) {
+        if self.calibration.is_some() {
+            return;
+        }
+        self.frames.push(frame);
+        if self.frames.len() > CALIBRATION_FRAMES + CALIBRATION_FRAMES / 4 {
+            let excess = self.frames.len() - CALIBRATION_FRAMES;
+            self.frames.drain(..excess);
+        }
+        self.since_attempt += 1;
+        if self.since_attempt < CALIBRATE_EVERY_FRAMES || self.buffer.samples().is_empty() {
+            return;
+        }
+        self.since_attempt = 0;
+        match calibrate(&self.frames, self.buffer.samples()) {
+            Ok(calibration) => {
+                self.calibration = Some(calibration);
+                self.refusal = None;
+                self.frames = Vec::new();
+            }
+            Err(refusal) => self.refusal = Some(refusal),
+        }
+    }
+}
+
+impl Pipeline {
+    /// Adds IMU samples (device frame; seconds on the IMU's clock, m/s²
+    /// with gravity, rad/s), at any time, before or after the frames of
+    /// their times. Refused whole, nothing kept, when a sample is not
+    /// finite or is earlier than the one before it
+    /// ([`crate::imu::ImuError`]). The most recent
+    /// [`crate::imu::MAX_BUFFERED_SAMPLES`] are kept; [`Self::reset`]
+    /// forgets them.
+    ///
+    /// Every few frames pushed, until it succeeds, the pipeline tries to
+    /// calibrate the IMU against the frames it tracked whose times the
+    /// samples cover ([`crate::imu::calibrate`]).
+    pub fn push_imu(&mut self, samples: &[ImuSample]) -> Result<(), PipelineError> {
+        self.imu.buffer.push(samples)?;
+        Ok(())
+    }
+
+    /// The camera's rotation from frame time `t_now` to frame time
+    /// `t_prev` (seconds, the timestamps of [`Self::push_frame`]) as the
+    /// gyro saw it, `camera_prev_from_camera_now`, with the sigma of each
+    /// component of its error (radians). `None` until the IMU is
+    /// calibrated, when the samples pushed do not cover the interval (on
+    /// the IMU's clock) or `t_now` is before `t_prev`.
+    #[must_use]
+    pub fn imu_rotation_prior(&self, t_prev: f64, t_now: f64) -> Option<(DQuat, f64)> {
+        if !(t_now >= t_prev) {
+            return None;
+        }
+        self.imu
+            .calibration?
+            .camera_before_from_camera_after(self.imu.buffer.samples(), t_prev, t_now)
+            .ok()
+    }
+
+    /// The IMU's calibration (mounting, time offset, gyro bias and noise),
+    /// once found.
+    #[must_use]
+    pub fn imu_calibration(&self) -> Option<&ImuCalibration> {
+        self.imu.calibration.as_ref()
+    }
+
+    /// Why the last calibration attempt gave none (`None` before any
+    /// attempt and once calibrated).
+    #[must_use]
+    pub fn imu_refusal(&self) -> Option<&CalibrationRefusal> {
+        self.imu.refusal.as_ref()
+    }
+
+    /// The mean rate of the IMU samples kept, Hz; `None` with fewer than two.
+    #[must_use]
+    pub fn imu_rate_hz(&self) -> Option<f64> {
+        self.imu.buffer.rate_hz()
+    }
+
+    /// Stage `observe_imu`: the frame just placed, for the calibration;
+    /// measured when tracking (or the first frame) placed it.
+    pub(super) fn observe_imu(&mut self, timestamp: f64, pose: &glam::DAffine3, verdict: Verdict) {
+        let measured = matches!(verdict, Verdict::Tracked | Verdict::Initialised);
+        self.imu.observe(FramePose {
+            time_s: timestamp,
+            world_from_camera: DQuat::from_mat3(&pose.matrix3).normalize(),
+            measured,
+        });
+    }
+
+    /// Forgets the samples, the frames and the calibration.
+    pub(super) fn reset_imu(&mut self) {
+        self.imu = ImuState::default();
+    }
+}
