@@ -22,10 +22,11 @@
 //! so steady that shifting the gyro in time changes nothing (the offset is
 //! free). Each bound is a sigma from the fit's own residual.
 
-use glam::{DQuat, DVec3};
+use glam::{DMat3, DQuat, DVec3};
+use nalgebra::{Matrix6, SMatrix, Vector6};
 use thiserror::Error;
 
-use super::integrate::{gyro_at, integrate_gyro, rotation_vector};
+use super::integrate::{gyro_at, integrate_gyro, quat_from_rotation_vector, rotation_vector};
 use super::wahba::{wahba, weakest_axis};
 use super::{ImuError, ImuSample};
 use crate::portable_math::axis_angle;
@@ -39,8 +40,8 @@ const COARSE_STEP_S: f64 = 0.002;
 /// The fine search's step, seconds, over one coarse step either side.
 const FINE_STEP_S: f64 = 0.000_1;
 /// The fewest pairs of consecutive measured frames a calibration is made
-/// from: half a second at 60 Hz.
-pub const MIN_PAIRS: usize = 30;
+/// from: a second at 60 Hz, two at 30 Hz.
+pub const MIN_PAIRS: usize = 60;
 /// Consecutive frames further apart than this (seconds) are not paired:
 /// frames were dropped, and a rotation over that long may pass pi.
 const MAX_PAIR_INTERVAL_S: f64 = 0.2;
@@ -53,13 +54,15 @@ const MIN_CROSS_RATE_RADPS: f64 = 0.03;
 /// The largest RMS disagreement per frame pair after the fit, radians
 /// (1.1 degrees): more is a tracking failure or another device's gyro.
 const MAX_RESIDUAL_RMS_RAD: f64 = 0.02;
-/// The largest sigma of the rotation about its weakest axis, radians
-/// (half a degree).
-const MAX_ROTATION_SIGMA_RAD: f64 = 0.5 * std::f64::consts::PI / 180.0;
+/// The largest sigma of the rotation about its weakest axis, radians (one
+/// degree): a frame's turn of a few degrees is then predicted to a few
+/// hundredths of a degree, well within the gyro's own noise over it.
+const MAX_ROTATION_SIGMA_RAD: f64 = std::f64::consts::PI / 180.0;
 /// The largest sigma of the time offset, seconds.
 const MAX_OFFSET_SIGMA_S: f64 = 0.002;
-/// Rounds of rotation-then-bias.
-const BIAS_ROUNDS: usize = 3;
+/// Gauss-Newton steps on rotation and bias together (the problem is
+/// nearly linear: two or three converge).
+const GAUSS_NEWTON_ROUNDS: usize = 4;
 /// The smallest gyro noise density assumed, rad/s/sqrt(Hz): a consumer
 /// MEMS gyro's datasheet floor (Bosch BMI160: 0.007 deg/s/sqrt(Hz)).
 const MIN_NOISE_DENSITY: f64 = 1.2e-4;
@@ -92,11 +95,12 @@ pub struct ImuCalibration {
     /// (from the spread of their second differences: motion adds to it,
     /// so it errs high).
     pub gyro_noise_density: f64,
-    /// Sigma of `camera_from_imu` about its least pinned axis, radians.
+    /// Sigma of `camera_from_imu` about its least pinned axis, radians
+    /// (with the bias's uncertainty, which trades against it).
     pub rotation_sigma_rad: f64,
     /// Sigma of `time_offset_s`, seconds.
     pub offset_sigma_s: f64,
-    /// Sigma of each component of `gyro_bias_radps`, rad/s.
+    /// Sigma of `gyro_bias_radps` along its least pinned direction, rad/s.
     pub bias_sigma_radps: f64,
     /// Frame pairs the fit used (after outliers went).
     pub pairs: usize,
@@ -362,25 +366,21 @@ fn device_rotations(
         .collect()
 }
 
-/// Rotation and bias at `offset_s`, alternated [`BIAS_ROUNDS`] times.
+/// Rotation and bias at `offset_s`: Wahba's rotation without a bias, then
+/// [`GAUSS_NEWTON_ROUNDS`] joint steps on both (alternating the two crawls:
+/// while the rate of turn stays near one vector `w`, a bias across `w` and
+/// a turn of the mounting about an axis across `w` move the fit alike).
 fn fit_at(pairs: &[Pair], samples: &[ImuSample], offset_s: f64) -> Result<Fit, CalibrationRefusal> {
     let device = device_rotations(pairs, samples, offset_s)?;
-    let time2: f64 = pairs.iter().map(|p| p.dt() * p.dt()).sum();
+    let mut rotation = wahba(pairs.iter().zip(&device).map(|(p, &d)| (p.camera, d)))
+        .ok_or(CalibrationRefusal::Numerical)?;
     let mut bias = DVec3::ZERO;
-    let mut rotation = DQuat::IDENTITY;
-    for round in 0..=BIAS_ROUNDS {
-        let corrected = pairs.iter().zip(&device).map(|(p, &d)| (p.camera, d - bias * p.dt()));
-        rotation = wahba(corrected).ok_or(CalibrationRefusal::Numerical)?;
-        if round == BIAS_ROUNDS {
-            break;
-        }
-        let inverse = rotation.inverse();
-        let sum: DVec3 = pairs
-            .iter()
-            .zip(&device)
-            .map(|(p, &d)| (d - inverse * p.camera) * p.dt())
-            .sum();
-        bias = sum / time2;
+    for _ in 0..GAUSS_NEWTON_ROUNDS {
+        let (h, g) = normal_equations(pairs, &device, rotation, bias);
+        let step = solve6(&h, &g).ok_or(CalibrationRefusal::Numerical)?;
+        let turn = DVec3::new(step[0], step[1], step[2]);
+        rotation = (quat_from_rotation_vector(turn) * rotation).normalize();
+        bias += DVec3::new(step[3], step[4], step[5]);
     }
     let cost = pairs
         .iter()
@@ -393,6 +393,53 @@ fn fit_at(pairs: &[Pair], samples: &[ImuSample], offset_s: f64) -> Result<Fit, C
         bias,
         cost,
     })
+}
+
+/// `J^T J` and `-J^T r` of the residuals `r = theta_c - R (theta_d - b
+/// dt)` in a turn `phi` of `R` (`R -> exp(phi) R`, camera frame) and a
+/// change of `b`: `dr/dphi = [v]x` with `v = R (theta_d - b dt)`, `dr/db =
+/// R dt`.
+fn normal_equations(
+    pairs: &[Pair],
+    device: &[DVec3],
+    rotation: DQuat,
+    bias: DVec3,
+) -> (Matrix6<f64>, Vector6<f64>) {
+    let r_mat = DMat3::from_quat(rotation);
+    let mut h = Matrix6::<f64>::zeros();
+    let mut g = Vector6::<f64>::zeros();
+    for (p, &d) in pairs.iter().zip(device) {
+        let v = rotation * (d - bias * p.dt());
+        let r = p.camera - v;
+        let skew = crate::se3::skew(v);
+        let mut j = SMatrix::<f64, 3, 6>::zeros();
+        for row in 0..3 {
+            for col in 0..3 {
+                j[(row, col)] = skew.col(col)[row];
+                j[(row, col + 3)] = r_mat.col(col)[row] * p.dt();
+            }
+        }
+        h += j.transpose() * j;
+        g -= j.transpose() * nalgebra::Vector3::new(r.x, r.y, r.z);
+    }
+    (h, g)
+}
+
+/// `h x = g` for a symmetric positive (semi-)definite `h`, damped by a
+/// millionth of its mean diagonal so that a rotation about one axis (a
+/// singular `h`, refused before) still solves.
+fn solve6(h: &Matrix6<f64>, g: &Vector6<f64>) -> Option<Vector6<f64>> {
+    let damping = 1e-12 * h.trace() / 6.0;
+    let damped = h + Matrix6::<f64>::identity() * damping;
+    let x = damped.cholesky()?.solve(g);
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+/// The largest eigenvalue of the 3x3 block of `m` at `(k, k)`.
+fn block_max_eigenvalue(m: &Matrix6<f64>, k: usize) -> Option<f64> {
+    let block: nalgebra::Matrix3<f64> = m.fixed_view::<3, 3>(k, k).into_owned();
+    let eigen = block.try_symmetric_eigen(1e-12, 200)?;
+    eigen.eigenvalues.iter().copied().reduce(f64::max)
 }
 
 /// Each pair's disagreement with `fit`, radians.
@@ -444,9 +491,18 @@ fn judge(
     // Three components a pair; rotation, bias and offset: 7 unknowns.
     let dof = (3 * n).saturating_sub(7).max(1) as f64;
     let sigma2 = fit.cost / dof;
-    let (weakest, _) =
-        weakest_axis(pairs.iter().map(|p| p.camera)).ok_or(CalibrationRefusal::Numerical)?;
-    let rotation_sigma_rad = (sigma2 / weakest).sqrt();
+    // Rotation and bias together: their covariance is sigma^2 (J^T J)^-1.
+    let device = device_rotations(pairs, samples, fit.offset_s)?;
+    let (h, _) = normal_equations(pairs, &device, fit.camera_from_imu, fit.bias);
+    let covariance = h.try_inverse().ok_or(CalibrationRefusal::Numerical)? * sigma2;
+    let rotation_sigma_rad = block_max_eigenvalue(&covariance, 0)
+        .ok_or(CalibrationRefusal::Numerical)?
+        .max(0.0)
+        .sqrt();
+    let bias_sigma_radps = block_max_eigenvalue(&covariance, 3)
+        .ok_or(CalibrationRefusal::Numerical)?
+        .max(0.0)
+        .sqrt();
     if !(rotation_sigma_rad <= MAX_ROTATION_SIGMA_RAD) {
         return Err(CalibrationRefusal::RotationUncertain {
             sigma_rad: rotation_sigma_rad,
@@ -469,7 +525,6 @@ fn judge(
             max_s: MAX_OFFSET_SIGMA_S,
         });
     }
-    let time2: f64 = pairs.iter().map(|p| p.dt() * p.dt()).sum();
     let first = pairs.first().map_or(0.0, |p| p.t0) + fit.offset_s;
     let last = pairs.last().map_or(0.0, |p| p.t1) + fit.offset_s;
     Ok(ImuCalibration {
@@ -479,7 +534,7 @@ fn judge(
         gyro_noise_density: noise_density(samples, first, last),
         rotation_sigma_rad,
         offset_sigma_s,
-        bias_sigma_radps: (sigma2 / time2).sqrt(),
+        bias_sigma_radps,
         pairs: n,
         residual_rms_rad,
     })
