@@ -13,8 +13,7 @@ mod common;
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 use surfel_slam::dataset::DatasetSource;
 use surfel_slam::imu::{
-    calibrate, integrate_gyro, rotation_vector, CalibrationRefusal, FramePose, ImuError,
-    ImuSample,
+    calibrate, integrate_gyro, rotation_vector, CalibrationRefusal, FramePose, ImuError, ImuSample,
 };
 use surfel_slam::portable_math::quat_from_axis_angle;
 use surfel_slam::synthetic::{self, look_at, ImuSimulation, NoiseModel, Scene, SwingPath};
@@ -35,7 +34,10 @@ fn loop_path(t: f64) -> DAffine3 {
 fn hand_held(t: f64) -> DAffine3 {
     use std::f64::consts::TAU;
     let wobble = quat_from_axis_angle(DVec3::X, 6f64.to_radians() * libm::sin(TAU * 0.7 * t))
-        * quat_from_axis_angle(DVec3::Z, 5f64.to_radians() * libm::sin(TAU * 0.45 * t + 1.0))
+        * quat_from_axis_angle(
+            DVec3::Z,
+            5f64.to_radians() * libm::sin(TAU * 0.45 * t + 1.0),
+        )
         * quat_from_axis_angle(DVec3::Y, 4f64.to_radians() * libm::sin(TAU * 0.9 * t + 2.0));
     loop_path(t) * DAffine3::from_quat(wobble)
 }
@@ -142,7 +144,12 @@ fn the_gyro_integrated_between_frames_is_the_true_rotation_within_its_noise() {
     // which the identity (no IMU) misses by hundreds of sigma.
     let biggest = truth
         .windows(2)
-        .map(|w| rotation_vector(DQuat::from_mat3(&(w[0].1.matrix3.transpose() * w[1].1.matrix3))).length())
+        .map(|w| {
+            rotation_vector(DQuat::from_mat3(
+                &(w[0].1.matrix3.transpose() * w[1].1.matrix3),
+            ))
+            .length()
+        })
         .fold(0.0, f64::max);
     assert!(biggest > 100.0 * sim.gyro_noise_density * (1.0f64 / 30.0).sqrt());
 }
@@ -214,10 +221,15 @@ fn calibration_from_the_true_poses_finds_the_mounting_and_the_offset() {
     // The calibrated prior between two frames: within 4 of its sigmas.
     for w in truth.windows(2).skip(40).take(60) {
         let ((t0, p0), (t1, p1)) = (w[0], w[1]);
-        let (q, sigma) = found.camera_before_from_camera_after(&samples, t0, t1).unwrap();
+        let (q, sigma) = found
+            .camera_before_from_camera_after(&samples, t0, t1)
+            .unwrap();
         let true_turn = DQuat::from_mat3(&(p0.matrix3.transpose() * p1.matrix3));
         let error = rotation_vector(true_turn.inverse() * q);
-        assert!(error.abs().max_element() < 4.0 * sigma, "{t0}: {error} against sigma {sigma}");
+        assert!(
+            error.abs().max_element() < 4.0 * sigma,
+            "{t0}: {error} against sigma {sigma}"
+        );
     }
 }
 
@@ -232,7 +244,10 @@ fn calibration_is_refused_when_the_motion_cannot_show_it() {
     let samples = sim.simulate(slide, -0.5, 4.5);
     let refusal = calibrate(&poses(&frames(slide, 60.0, 4.0)), &samples).unwrap_err();
     println!("pure translation: {refusal}");
-    assert!(matches!(refusal, CalibrationRefusal::TooLittleRotation { .. }), "{refusal}");
+    assert!(
+        matches!(refusal, CalibrationRefusal::TooLittleRotation { .. }),
+        "{refusal}"
+    );
 
     // Panning back and forth about the vertical at a fixed pitch: the
     // rotation about that axis (fixed in the camera) is not seen.
@@ -254,7 +269,10 @@ fn calibration_is_refused_when_the_motion_cannot_show_it() {
     // Samples that cover none of the frames.
     let samples = sim.simulate(loop_path, 10.0, 12.0);
     let refusal = calibrate(&poses(&frames(loop_path, 60.0, 4.0)), &samples).unwrap_err();
-    assert!(matches!(refusal, CalibrationRefusal::TooFewPairs { pairs: 0, .. }), "{refusal}");
+    assert!(
+        matches!(refusal, CalibrationRefusal::TooFewPairs { pairs: 0, .. }),
+        "{refusal}"
+    );
 
     // Another recording's gyro (another path): the fit is poor.
     let swing = SwingPath::default();
@@ -278,16 +296,31 @@ fn bad_samples_are_refused_and_change_nothing() {
     nan.accel_mps2.z = f64::NAN;
     let err = slam.push_imu(&[good[50], nan]).unwrap_err();
     println!("{err}");
-    assert!(matches!(err, PipelineError::Imu(ImuError::NotFinite { index: 1, .. })), "{err}");
+    assert!(
+        matches!(
+            err,
+            PipelineError::Imu(ImuError::NotFinite { index: 1, .. })
+        ),
+        "{err}"
+    );
     let err = slam.push_imu(&good[10..20]).unwrap_err();
     println!("{err}");
-    assert!(matches!(err, PipelineError::Imu(ImuError::OutOfOrder { index: 0, .. })), "{err}");
+    assert!(
+        matches!(
+            err,
+            PipelineError::Imu(ImuError::OutOfOrder { index: 0, .. })
+        ),
+        "{err}"
+    );
     let mut infinite = good[50];
     infinite.time_s = f64::INFINITY;
     assert!(slam.push_imu(&[infinite]).is_err());
     assert_eq!(slam.imu_rate_hz(), rate, "nothing kept of a refused batch");
     slam.push_imu(&good[50..]).unwrap();
-    assert!(slam.imu_rotation_prior(0.1, 0.2).is_none(), "not calibrated");
+    assert!(
+        slam.imu_rotation_prior(0.1, 0.2).is_none(),
+        "not calibrated"
+    );
     assert!(slam.imu_calibration().is_none());
     slam.reset();
     assert!(slam.imu_rate_hz().is_none(), "reset forgets the samples");
@@ -339,8 +372,12 @@ fn the_pipeline_calibrates_from_its_own_tracked_poses() {
     let n = truth.len();
     let ((t0, p0), (t1, p1)) = (truth[n - 2], truth[n - 1]);
     let (q, sigma) = slam.imu_rotation_prior(t0, t1).unwrap();
-    let error = rotation_vector(DQuat::from_mat3(&(p0.matrix3.transpose() * p1.matrix3)).inverse() * q);
-    assert!(error.abs().max_element() < 4.0 * sigma, "{error} against {sigma}");
+    let error =
+        rotation_vector(DQuat::from_mat3(&(p0.matrix3.transpose() * p1.matrix3)).inverse() * q);
+    assert!(
+        error.abs().max_element() < 4.0 * sigma,
+        "{error} against {sigma}"
+    );
     assert!(slam.imu_rotation_prior(t1, t0).is_none());
     slam.reset();
     assert!(slam.imu_calibration().is_none() && slam.imu_rotation_prior(t0, t1).is_none());
@@ -373,7 +410,10 @@ fn a_stray_scan_s_imu_csv_is_read_and_its_cut_off_last_row_skipped_with_a_warnin
     let mut imu = String::from("timestamp, a_x, a_y, a_z, alpha_x, alpha_y, alpha_z\n");
     for i in 0..20 {
         let t = 10.0 + f64::from(i) * 0.01;
-        imu.push_str(&format!("{t:.6}, 0.1, -9.81, 0.05, 0.01, -0.02, {:.4}\n", 0.001 * f64::from(i)));
+        imu.push_str(&format!(
+            "{t:.6}, 0.1, -9.81, 0.05, 0.01, -0.02, {:.4}\n",
+            0.001 * f64::from(i)
+        ));
     }
     imu.push_str("10.200000, 0.1, -9.8");
     std::fs::write(dir.join("imu.csv"), &imu).unwrap();
@@ -383,7 +423,10 @@ fn a_stray_scan_s_imu_csv_is_read_and_its_cut_off_last_row_skipped_with_a_warnin
     assert_eq!(sequence.warnings.len(), 1);
     let warning = sequence.warnings[0].to_string();
     println!("{warning}");
-    assert!(warning.contains("imu.csv, line 22") && warning.contains("cut off"), "{warning}");
+    assert!(
+        warning.contains("imu.csv, line 22") && warning.contains("cut off"),
+        "{warning}"
+    );
     // And the pipeline takes the samples as read.
     let config = common::synthetic_config(Intrinsics::new(131.25, 131.25, 79.5, 59.5, 160, 120));
     let mut slam = Pipeline::new(config).unwrap();
@@ -391,7 +434,11 @@ fn a_stray_scan_s_imu_csv_is_read_and_its_cut_off_last_row_skipped_with_a_warnin
     assert!((slam.imu_rate_hz().unwrap() - 100.0).abs() < 1e-6);
 
     // A malformed row before the last one is an error naming the file.
-    std::fs::write(dir.join("imu.csv"), imu.replace("10.050000, 0.1", "10.050000, x")).unwrap();
+    std::fs::write(
+        dir.join("imu.csv"),
+        imu.replace("10.050000, 0.1", "10.050000, x"),
+    )
+    .unwrap();
     let err = DatasetSource::open(dir).unwrap().sequence().unwrap_err();
     assert!(err.to_string().contains("imu.csv, line 7"), "{err}");
 }

@@ -479,11 +479,16 @@ mod tests {
             seq.warnings[0]
         );
         // Whole: no warning. A bad row before the last: an error.
-        let (whole, warning) = parse_imu("10, 0, 0, 0, 0, 0, 0\n10.01, 0, 0, 0, 0, 0, 0\n", "i.csv").unwrap();
+        let (whole, warning) =
+            parse_imu("10, 0, 0, 0, 0, 0, 0\n10.01, 0, 0, 0, 0, 0, 0\n", "i.csv").unwrap();
         assert_eq!((whole.len(), warning), (2, None));
         let err = parse_imu("10, 0, 0, 0, 0, 0\n10.01, 0, 0, 0, 0, 0, 0\n", "i.csv").unwrap_err();
-        assert!(matches!(err, DatasetError::MalformedLine { line_number: 1, .. }), "{err}");
-        let err = parse_imu("10, 0, 0, 0, nan, 0, 0\n10.01, 0, 0, 0, 0, 0, 0\n", "i.csv").unwrap_err();
+        assert!(
+            matches!(err, DatasetError::MalformedLine { line_number: 1, .. }),
+            "{err}"
+        );
+        let err =
+            parse_imu("10, 0, 0, 0, nan, 0, 0\n10.01, 0, 0, 0, 0, 0, 0\n", "i.csv").unwrap_err();
         assert!(err.to_string().contains("alpha_x"), "{err}");
     }
 

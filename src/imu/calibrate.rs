@@ -271,7 +271,10 @@ pub fn calibrate(
             needed: MIN_PAIRS,
         });
     }
-    let (lo, hi) = (coarse.offset_s - COARSE_STEP_S, coarse.offset_s + COARSE_STEP_S);
+    let (lo, hi) = (
+        coarse.offset_s - COARSE_STEP_S,
+        coarse.offset_s + COARSE_STEP_S,
+    );
     let fit = search(&pairs, samples, lo, hi, FINE_STEP_S)?;
     judge(&pairs, samples, &fit)
 }
@@ -309,7 +312,7 @@ fn check_motion(pairs: &[Pair]) -> Result<(), CalibrationRefusal> {
     let time2: f64 = pairs.iter().map(|p| p.dt() * p.dt()).sum();
     let angle2: f64 = pairs.iter().map(|p| p.camera.length_squared()).sum();
     let rms_rate_radps = (angle2 / time2).sqrt();
-    if !(rms_rate_radps >= MIN_RMS_RATE_RADPS) {
+    if rms_rate_radps.is_nan() || rms_rate_radps < MIN_RMS_RATE_RADPS {
         return Err(CalibrationRefusal::TooLittleRotation {
             rms_rate_radps,
             needed_radps: MIN_RMS_RATE_RADPS,
@@ -318,7 +321,7 @@ fn check_motion(pairs: &[Pair]) -> Result<(), CalibrationRefusal> {
     let (weakest, axis) =
         weakest_axis(pairs.iter().map(|p| p.camera)).ok_or(CalibrationRefusal::Numerical)?;
     let cross_rate_radps = (weakest / time2).sqrt();
-    if !(cross_rate_radps >= MIN_CROSS_RATE_RADPS) {
+    if cross_rate_radps.is_nan() || cross_rate_radps < MIN_CROSS_RATE_RADPS {
         return Err(CalibrationRefusal::OneAxis {
             axis,
             cross_rate_radps,
@@ -482,7 +485,7 @@ fn judge(
 ) -> Result<ImuCalibration, CalibrationRefusal> {
     let n = pairs.len();
     let residual_rms_rad = (fit.cost / n as f64).sqrt();
-    if !(residual_rms_rad <= MAX_RESIDUAL_RMS_RAD) {
+    if residual_rms_rad.is_nan() || residual_rms_rad > MAX_RESIDUAL_RMS_RAD {
         return Err(CalibrationRefusal::PoorFit {
             residual_rms_rad,
             max_rad: MAX_RESIDUAL_RMS_RAD,
@@ -503,7 +506,7 @@ fn judge(
         .ok_or(CalibrationRefusal::Numerical)?
         .max(0.0)
         .sqrt();
-    if !(rotation_sigma_rad <= MAX_ROTATION_SIGMA_RAD) {
+    if rotation_sigma_rad.is_nan() || rotation_sigma_rad > MAX_ROTATION_SIGMA_RAD {
         return Err(CalibrationRefusal::RotationUncertain {
             sigma_rad: rotation_sigma_rad,
             max_rad: MAX_ROTATION_SIGMA_RAD,
@@ -519,7 +522,7 @@ fn judge(
     } else {
         f64::INFINITY
     };
-    if !(offset_sigma_s <= MAX_OFFSET_SIGMA_S) {
+    if offset_sigma_s.is_nan() || offset_sigma_s > MAX_OFFSET_SIGMA_S {
         return Err(CalibrationRefusal::OffsetUncertain {
             sigma_s: offset_sigma_s,
             max_s: MAX_OFFSET_SIGMA_S,

@@ -52,12 +52,17 @@ pub fn rotation_vector(q: DQuat) -> DVec3 {
 pub fn gyro_at(samples: &[ImuSample], t: f64) -> Result<DVec3, ImuError> {
     check_covered(samples, t, t)?;
     let after = samples.partition_point(|s| s.time_s <= t);
-    Ok(match (after.checked_sub(1).and_then(|i| samples.get(i)), samples.get(after)) {
-        (Some(a), Some(b)) => interpolate(a, b, t)?,
-        (Some(a), None) => a.gyro_radps,
-        (None, Some(b)) => b.gyro_radps,
-        (None, None) => DVec3::ZERO,
-    })
+    Ok(
+        match (
+            after.checked_sub(1).and_then(|i| samples.get(i)),
+            samples.get(after),
+        ) {
+            (Some(a), Some(b)) => interpolate(a, b, t)?,
+            (Some(a), None) => a.gyro_radps,
+            (None, Some(b)) => b.gyro_radps,
+            (None, None) => DVec3::ZERO,
+        },
+    )
 }
 
 /// The device's rotation from time `t1` to time `t0` (seconds, IMU clock):
@@ -189,7 +194,11 @@ mod tests {
 
     #[test]
     fn uncovered_intervals_and_gaps_are_errors() {
-        let samples = [sample(0.0, DVec3::X), sample(0.01, DVec3::X), sample(0.5, DVec3::X)];
+        let samples = [
+            sample(0.0, DVec3::X),
+            sample(0.01, DVec3::X),
+            sample(0.5, DVec3::X),
+        ];
         assert!(matches!(
             integrate_gyro(&samples, -0.01, 0.005, DVec3::ZERO),
             Err(ImuError::NotCovered { .. })

@@ -85,7 +85,7 @@ impl Pipeline {
     /// the IMU's clock) or `t_now` is before `t_prev`.
     #[must_use]
     pub fn imu_rotation_prior(&self, t_prev: f64, t_now: f64) -> Option<(DQuat, f64)> {
-        if !(t_now >= t_prev) {
+        if t_now.is_nan() || t_prev.is_nan() || t_now < t_prev {
             return None;
         }
         self.imu

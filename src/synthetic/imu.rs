@@ -181,7 +181,11 @@ mod tests {
         };
         let samples = sim.simulate(|_| DAffine3::IDENTITY, 0.0, 100.0);
         let n = samples.len() as f64;
-        let var = samples.iter().map(|s| s.gyro_radps.length_squared()).sum::<f64>() / (3.0 * n);
+        let var = samples
+            .iter()
+            .map(|s| s.gyro_radps.length_squared())
+            .sum::<f64>()
+            / (3.0 * n);
         let expected = sim.gyro_noise_density * sim.rate_hz.sqrt();
         assert!((var.sqrt() / expected - 1.0).abs() < 0.03, "{}", var.sqrt());
     }
