@@ -15,9 +15,14 @@ use crate::imu::{calibrate, CalibrationRefusal, FramePose, ImuBuffer, ImuCalibra
 /// Frames whose rotations the calibration is tried on: the last 600 (10 s
 /// at 60 Hz), so that a start that barely turns is outgrown.
 const CALIBRATION_FRAMES: usize = 600;
-/// Frames between two calibration attempts (an attempt fits every pair
-/// at 140 offsets: a few milliseconds).
-const CALIBRATE_EVERY_FRAMES: u32 = 10;
+/// Frames between two calibration attempts: half a second at 60 Hz for
+/// the first [`QUICK_ATTEMPTS`], then five seconds. An attempt on 600
+/// frames takes 50 ms (2 cores, `tests/imu.rs`'s loop): 1.7 ms a frame at
+/// first, 0.17 ms once a recording has shown for a while that it does
+/// not turn enough.
+const CALIBRATE_EVERY_FRAMES: [u32; 2] = [30, 300];
+/// Attempts made every `CALIBRATE_EVERY_FRAMES[0]` frames.
+const QUICK_ATTEMPTS: u32 = 10;
 
 /// What the pipeline keeps of the IMU.
 #[derive(Debug, Clone, Default)]
@@ -30,6 +35,7 @@ pub(super) struct ImuState {
     /// Why the last attempt gave no calibration.
     refusal: Option<CalibrationRefusal>,
     since_attempt: u32,
+    attempts: u32,
 }
 
 impl ImuState {
@@ -45,10 +51,12 @@ impl ImuState {
             self.frames.drain(..excess);
         }
         self.since_attempt += 1;
-        if self.since_attempt < CALIBRATE_EVERY_FRAMES || self.buffer.samples().is_empty() {
+        let every = CALIBRATE_EVERY_FRAMES[usize::from(self.attempts >= QUICK_ATTEMPTS)];
+        if self.since_attempt < every || self.buffer.samples().is_empty() {
             return;
         }
         self.since_attempt = 0;
+        self.attempts += 1;
         match calibrate(&self.frames, self.buffer.samples()) {
             Ok(calibration) => {
                 self.calibration = Some(calibration);
