@@ -2,7 +2,8 @@
 //! found from the tracked frames once they turned enough, and the rotation
 //! prior the tracker asks for between two frame times.
 //!
-//! Nothing here changes a frame's tracking: the prior is offered
+//! Nothing here changes a frame's tracking unless
+//! `SlamConfig::imu_rotation_guess` is set: the prior is offered
 //! ([`Pipeline::imu_rotation_prior`]), not applied. The state is not saved
 //! in sessions: a loaded session calibrates again from the frames pushed
 //! after it (it needs samples of those times anyway).
@@ -131,6 +132,28 @@ impl Pipeline {
             world_from_camera: DQuat::from_mat3(&pose.matrix3).normalize(),
             measured,
         });
+    }
+
+    /// The constant-velocity motion (`previous_from_current`) the frame
+    /// stamped `timestamp` is tracked from: with
+    /// `SlamConfig::imu_rotation_guess` and a calibrated IMU covering the
+    /// time since the last placed frame, the last step's translation
+    /// turned by the gyro's rotation; otherwise the last step.
+    pub(super) fn velocity_with_imu(&self, timestamp: f64) -> Option<glam::DAffine3> {
+        if !self.config.imu_rotation_guess {
+            return self.velocity;
+        }
+        let rotation = self
+            .trajectory
+            .get(self.placed_frame as usize)
+            .and_then(|&(t_prev, _)| self.imu_rotation_prior(t_prev, timestamp));
+        match rotation {
+            Some((q, _)) => Some(glam::DAffine3::from_mat3_translation(
+                glam::DMat3::from_quat(q),
+                self.velocity.map_or(glam::DVec3::ZERO, |v| v.translation),
+            )),
+            None => self.velocity,
+        }
     }
 
     /// Forgets the samples, the frames and the calibration.

@@ -378,7 +378,7 @@ impl Pipeline {
         let t0 = now_ms();
         self.preprocess(frame);
         let t1 = now_ms();
-        let mut tracked = self.track();
+        let mut tracked = self.track(timestamp);
         self.dead_reckon(&mut tracked);
         self.restart_if_lost_long(&mut tracked);
         let as_tracked = tracked.pose;
@@ -452,7 +452,7 @@ impl Pipeline {
     /// Stage `track`: the pose of the pyramid's frame against the model
     /// prediction, with its verdict ([`Pipeline::track_or_recover`]); the
     /// first frame of a map is the world frame.
-    fn track(&mut self) -> Tracked {
+    fn track(&mut self, timestamp: f64) -> Tracked {
         self.keep_for_sparse_and_ferns();
         if let Some(pose) = self.reseed_at.take() {
             return Tracked {
@@ -470,7 +470,8 @@ impl Pipeline {
                 checks: TrackingChecks::default(),
             },
             Some(previous) => {
-                self.track_or_recover(&previous, self.velocity, self.counts.lost_streak)
+                let velocity = self.velocity_with_imu(timestamp);
+                self.track_or_recover(&previous, velocity, self.counts.lost_streak)
             }
         };
         let tracked = self.relocalise_if_lost(tracked);
