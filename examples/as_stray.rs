@@ -13,7 +13,7 @@
 //! ICL-NUIM's upward image y axis (fy < 0) is turned into the usual one by
 //! flipping the rows: the camera frame, so the poses, stay as they are.
 //!
-//! `cargo run --release --example as_stray -- IN OUT [--noisy] [--edges] [--far M] [--interpolate] [--medium M [--medium-error E]]`
+//! `cargo run --release --example as_stray -- IN OUT [--noisy] [--edges] [--far M] [--interpolate] [--medium M [--medium-error E]] [--imu]`
 //! (`--medium M`: depth beyond M metres at confidence 1, and off by a
 //! smooth error field of amplitude E (default 0.015) times its depth, a
 //! new field each frame, as a time-of-flight sensor's less certain depth;
@@ -24,14 +24,21 @@
 //! (`--noisy`: Kinect-v1 structured-light noise on the full-size depth
 //! before sampling, frame i drawn from seed i; harsher than ARKit's
 //! smoothed depth).
+//! (`--imu`: an `imu.csv` simulated from the ground truth, a phone's IMU at
+//! 100 Hz as `synthetic::ImuSimulation::phone` makes it (mounted as an
+//! iPhone's, its clock 10 ms ahead); the truth between its poses:
+//! positions on a Catmull-Rom spline, rotations slerped. Timestamps must
+//! be seconds (TUM), and gravity is taken along world -z (TUM's motion
+//! capture frame): the gyro is what the pipeline's calibration reads.)
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
 use std::fmt::Write as _;
 use std::path::Path;
 
+use glam::{DAffine3, DMat3, DQuat, DVec3};
 use image::{ImageBuffer, Luma};
 use surfel_slam::dataset::{read_frame, Sequence};
-use surfel_slam::synthetic::StructuredLight;
+use surfel_slam::synthetic::{ImuSimulation, StructuredLight, STANDARD_GRAVITY_MPS2};
 use surfel_slam::SlamConfig;
 
 const W: usize = 256;
@@ -79,7 +86,7 @@ fn depth_at(depth: &[f32], (width, height): (usize, usize), x: f64, y: f64) -> f
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let (Some(input), Some(output)) = (args.get(1), args.get(2)) else {
-        return Err("usage: as_stray IN OUT [--noisy] [--edges] [--far M] [--interpolate] [--medium M [--medium-error E]]".into());
+        return Err("usage: as_stray IN OUT [--noisy] [--edges] [--far M] [--interpolate] [--medium M [--medium-error E]] [--imu]".into());
     };
     let (input, output) = (Path::new(input), Path::new(output));
     let noisy = args.iter().any(|a| a == "--noisy");
@@ -234,5 +241,58 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     std::fs::write(output.join("odometry.csv"), odometry)?;
     println!("{written} frames written to {}", output.display());
+    if args.iter().any(|a| a == "--imu") {
+        write_imu(&sequence.ground_truth, output)?;
+    }
+    Ok(())
+}
+
+/// The pose of `truth` (sorted by time) at `t`: the position on the
+/// Catmull-Rom spline through its positions, the rotation slerped between
+/// its two poses around `t`.
+fn pose_at(truth: &[(f64, DAffine3)], t: f64) -> DAffine3 {
+    let n = truth.len();
+    let i = truth.partition_point(|(s, _)| *s <= t).clamp(1, n - 1) - 1;
+    let (t0, a) = truth[i];
+    let (t1, b) = truth[i + 1];
+    let f = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    let p = |k: usize| truth[k.min(n - 1)].1.translation;
+    let (p0, p1, p2, p3) = (p(i.saturating_sub(1)), p(i), p(i + 1), p(i + 2));
+    let (f2, f3) = (f * f, f * f * f);
+    let position = 0.5
+        * (2.0 * p1
+            + (p2 - p0) * f
+            + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * f2
+            + (3.0 * p1 - p0 - 3.0 * p2 + p3) * f3);
+    let qa = DQuat::from_mat3(&a.matrix3);
+    let mut qb = DQuat::from_mat3(&b.matrix3);
+    if qa.dot(qb) < 0.0 {
+        qb = -qb;
+    }
+    DAffine3::from_mat3_translation(DMat3::from_quat(qa.slerp(qb, f)), position)
+}
+
+/// `imu.csv` simulated from `truth`, as Stray Scanner writes it.
+fn write_imu(truth: &[(f64, DAffine3)], output: &Path) -> Result<(), Box<dyn std::error::Error>> {
+    if truth.len() < 4 {
+        return Err("--imu needs the sequence's ground truth".into());
+    }
+    let sim = ImuSimulation {
+        gravity_world_mps2: DVec3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2),
+        ..ImuSimulation::phone()
+    };
+    let (first, last) = (truth[0].0, truth[truth.len() - 1].0);
+    let samples = sim.simulate(|t| pose_at(truth, t), first + 0.05, last - 0.05);
+    let mut text = String::from("timestamp, a_x, a_y, a_z, alpha_x, alpha_y, alpha_z\n");
+    for s in &samples {
+        let (a, g) = (s.accel_mps2, s.gyro_radps);
+        writeln!(
+            text,
+            "{:.6}, {:.6}, {:.6}, {:.6}, {:.6}, {:.6}, {:.6}",
+            s.time_s, a.x, a.y, a.z, g.x, g.y, g.z
+        )?;
+    }
+    std::fs::write(output.join("imu.csv"), text)?;
+    println!("{} IMU samples written (100 Hz)", samples.len());
     Ok(())
 }

@@ -19,6 +19,7 @@ pub mod features;
 pub mod flow;
 pub mod frame;
 pub mod fusion;
+pub mod imu;
 pub mod loop_closure;
 pub mod mesh;
 pub mod noise;

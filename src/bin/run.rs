@@ -23,6 +23,7 @@ use surfel_slam::session;
 use surfel_slam::{FrameReport, Pipeline, SlamConfig, Verdict};
 
 use crate::frame_log::FrameLog;
+use crate::imu_feed::ImuFeed;
 use crate::loop_log::LoopLog;
 use crate::mesh_file::{mesh_format, write_mesh_file};
 use crate::summary::{print_summary, read_reference, Played};
@@ -139,10 +140,12 @@ pub fn run(args: &RunArgs, given: &[String]) -> Result<u8> {
         .as_ref()
         .map(|_| LoopLog::new(&sequence.ground_truth));
     let mut frame_log = args.frame_log.as_ref().map(|_| FrameLog::new(&sequence));
+    let first_s = frames.first().map_or(0.0, |f| f.timestamp);
+    let mut imu = ImuFeed::new(&sequence.imu, first_s);
     let played = track_frames(
         &mut source,
         (&frames, sequence.frames.len()),
-        &mut slam,
+        (&mut slam, &mut imu),
         (args.quiet, loop_log.as_mut(), frame_log.as_mut()),
     );
     if played.pushed == 0 {
@@ -362,14 +365,15 @@ fn progress_bar(frames: usize, quiet: bool) -> ProgressBar {
     bar
 }
 
-/// Reads and pushes every frame into `slam`, naming lost, recovered and
-/// skipped frames on stderr, recording the loop stage in `loop_log` when
-/// given. `in_sequence`: the sequence's frame count, whose last frame's
-/// undecodable image is a recording cut short, named as a warning.
+/// Reads and pushes every frame into `slam` (the IMU's samples up to it
+/// first), naming lost, recovered and skipped frames on stderr, and the
+/// IMU's calibration once found; recording the loop stage in `loop_log`
+/// when given. `in_sequence`: the sequence's frame count, whose last
+/// frame's undecodable image is a recording cut short, named as a warning.
 fn track_frames(
     source: &mut DatasetSource,
     (frames, in_sequence): (&[&FrameEntry], usize),
-    slam: &mut Pipeline,
+    (slam, imu): (&mut Pipeline, &mut ImuFeed<'_>),
     (quiet, mut loop_log, mut frame_log): (
         bool,
         Option<&mut LoopLog<'_>>,
@@ -380,6 +384,7 @@ fn track_frames(
     let (mut failed, mut streak, mut ms) = (0usize, 0u32, Vec::new());
     let mut last = None;
     for entry in frames {
+        imu.before_frame(slam, entry.timestamp);
         let read = source.read_frame(entry, &slam.config().depth);
         let cut_off = entry.index + 1 == in_sequence
             && read.as_ref().is_err_and(DatasetError::is_undecodable_image);
@@ -409,6 +414,9 @@ fn track_frames(
                     log.record(entry, &report, online);
                 }
                 report_verdict(&bar, entry, &report, (streak, slam.is_localising()));
+                if let Some(line) = imu.announcement(slam, entry.index) {
+                    bar.suspend(|| eprintln!("{line}"));
+                }
                 streak = report.counts.lost_streak;
                 bar.set_message(format!(
                     "{} surfels, {} lost, {} recovered",
@@ -455,6 +463,9 @@ fn track_frames(
         }
     }
     bar.finish_and_clear();
+    if let Some(line) = imu.closing(slam) {
+        eprintln!("{line}");
+    }
     ms.sort_by(f64::total_cmp);
     Played {
         pushed: ms.len(),

@@ -14,6 +14,7 @@
 mod bench;
 mod evaluate;
 mod frame_log;
+mod imu_feed;
 mod loop_log;
 mod mesh_file;
 mod plot;

@@ -41,6 +41,7 @@ use thiserror::Error;
 
 use crate::camera::{CameraPreset, Intrinsics};
 use crate::frame::FrameError;
+use crate::imu::ImuSample;
 
 pub use archive::{ArchiveFormat, ArchiveReader};
 pub use decode::{decode_frame, decode_frame_bytes, FrameBytes, DEPTH_ONLY_GREY};
@@ -230,8 +231,8 @@ pub struct Layout {
     /// (TUM: rgb.txt, depth.txt, groundtruth.txt if present; ICL-NUIM: the
     /// associations file and the `*.gt.freiburg` if present; 7-Scenes: every
     /// per-frame `.pose.txt`, the ground truth, each optional; RealSense:
-    /// `camera_intrinsic.json`; Stray Scanner: `camera_matrix.csv` and
-    /// `odometry.csv`).
+    /// `camera_intrinsic.json`; Stray Scanner: `camera_matrix.csv`,
+    /// `odometry.csv` and, when listed, `imu.csv`).
     pub index_files: Vec<String>,
 }
 
@@ -301,6 +302,11 @@ pub struct Sequence {
     /// forward). Not ground truth: a reference to compare with, which
     /// drifts too. Empty for other layouts.
     pub odometry: Vec<(f64, DAffine3)>,
+    /// The recording's IMU samples (Stray Scanner's `imu.csv`), in the
+    /// file's order (seconds on the IMU's clock; device frame; m/s² with
+    /// gravity, rad/s); empty when the recording has none. For
+    /// [`crate::Pipeline::push_imu`].
+    pub imu: Vec<ImuSample>,
     /// Problems that did not stop the sequence: a 7-Scenes pose file that
     /// could not be read (that frame has no ground truth), a cut-off last
     /// row of an index or trajectory file ([`DatasetError::CutOffLine`]:
@@ -441,10 +447,11 @@ fn detect_sensor_layout(top: &[&str], names: &[&str], root_prefix: &str) -> Opti
     let (kind, index_files) = if top.contains(&"camera_intrinsic.json") {
         (DatasetKind::RealSense, vec![full("camera_intrinsic.json")])
     } else if top.contains(&"camera_matrix.csv") && top.contains(&"odometry.csv") {
-        (
-            DatasetKind::StrayScanner,
-            vec![full("camera_matrix.csv"), full("odometry.csv")],
-        )
+        let mut files = vec![full("camera_matrix.csv"), full("odometry.csv")];
+        if top.contains(&"imu.csv") {
+            files.push(full("imu.csv"));
+        }
+        (DatasetKind::StrayScanner, files)
     } else {
         return None;
     };
@@ -497,6 +504,7 @@ pub fn parse_sequence(
         .collect();
     let mut intrinsics = None;
     let mut odometry = Vec::new();
+    let mut imu = Vec::new();
     let mut warnings = Vec::new();
     let (preset, frames, mut ground_truth) = match layout.kind {
         DatasetKind::Tum => {
@@ -534,6 +542,7 @@ pub fn parse_sequence(
             let parsed = stray::parse(layout, &listing, index_texts, &mut warnings)?;
             intrinsics = Some(parsed.intrinsics);
             odometry = parsed.odometry;
+            imu = parsed.imu;
             (CameraPreset::StrayLidar, parsed.frames, Vec::new())
         }
     };
@@ -557,6 +566,7 @@ pub fn parse_sequence(
         frames,
         ground_truth,
         odometry,
+        imu,
         warnings,
     })
 }

@@ -20,7 +20,11 @@
 //!   frames from 1 unless told `-start_number 0`, so an `rgb/` folder that
 //!   starts at `000001` is matched one number up. Without `rgb/` the
 //!   sequence is depth only.
-//! - `imu.csv`: ignored.
+//! - `imu.csv` (optional): a header line, then `timestamp, a_x, a_y, a_z,
+//!   alpha_x, alpha_y, alpha_z` at 100 Hz (seconds on ARKit's clock, the
+//!   accelerometer in m/s² with gravity, the gyro in rad/s, the phone's
+//!   own axes): [`crate::dataset::Sequence::imu`]. A last row cut off (the
+//!   app stopped mid-write) is skipped with a warning naming the line.
 //!
 //! A cut-off last row of `odometry.csv` (the app stopped while writing it)
 //! is skipped with a warning ([`crate::dataset::Sequence::warnings`]).
@@ -36,6 +40,7 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 use glam::{DAffine3, DQuat, DVec3};
 
 use crate::camera::Intrinsics;
+use crate::imu::ImuSample;
 
 use super::lines::{parse_rows, parse_rows_strict, Line};
 use super::{index_text, numbered_in, CalibratedSize, DatasetError, FrameEntry, Layout};
@@ -71,12 +76,15 @@ pub(crate) struct Parsed {
     pub frames: Vec<FrameEntry>,
     /// The device's odometry `(timestamp, world_from_camera)`.
     pub odometry: Vec<(f64, DAffine3)>,
+    /// The IMU's samples from `imu.csv`; empty without one.
+    pub imu: Vec<ImuSample>,
 }
 
-/// Builds the Stray Scanner frame list, the depth intrinsics and the
-/// odometry from `camera_matrix.csv` (`layout.index_files[0]`) and
-/// `odometry.csv` (`[1]`); a cut-off last row of the odometry (the app
-/// stopped mid-write) is skipped onto `warnings`.
+/// Builds the Stray Scanner frame list, the depth intrinsics, the
+/// odometry and the IMU samples from `camera_matrix.csv`
+/// (`layout.index_files[0]`), `odometry.csv` (`[1]`) and, when listed and
+/// its text given, `imu.csv` (`[2]`); a cut-off last row of the odometry
+/// (the app stopped mid-write) is skipped onto `warnings`.
 pub(crate) fn parse(
     layout: &Layout,
     listing: &HashSet<&str>,
@@ -104,6 +112,14 @@ pub(crate) fn parse(
         warnings,
         odometry_row,
     )?;
+    let (imu, warning) = match layout.index_files.get(2) {
+        Some(name) => match texts.get(name) {
+            Some(text) => parse_imu(text, name)?,
+            None => (Vec::new(), None),
+        },
+        None => (Vec::new(), None),
+    };
+    warnings.extend(warning);
 
     let depth = numbered_in(listing, &format!("{root}depth/"), &["png"]);
     let confidence = numbered_in(listing, &format!("{root}confidence/"), &["png"]);
@@ -164,6 +180,7 @@ pub(crate) fn parse(
         intrinsics,
         frames,
         odometry,
+        imu,
     })
 }
 
@@ -352,6 +369,51 @@ fn odometry_row(i: usize, line: Line<'_>) -> Result<Option<OdometryRow>, Dataset
     }))
 }
 
+/// Parses `imu.csv`: an optional header line (its first field not a
+/// number), then rows of 7 comma-separated numbers `timestamp, a_x, a_y,
+/// a_z, alpha_x, alpha_y, alpha_z` (seconds, m/s² with gravity, rad/s).
+/// The last row, when it has fewer fields or a field that is not a number,
+/// was cut off by the app stopping mid-write: it is skipped, and the
+/// second value is the warning naming `file_name` and its line. Any other
+/// malformed row is a `MalformedLine` error.
+pub fn parse_imu(
+    text: &str,
+    file_name: &str,
+) -> Result<(Vec<ImuSample>, Option<DatasetError>), DatasetError> {
+    let mut warnings = Vec::new();
+    let samples = parse_rows(text, file_name, true, &mut warnings, |i, line| {
+        let f = fields(&line);
+        if i == 0 && f.first().is_some_and(|h| h.parse::<f64>().is_err()) {
+            return Ok(None);
+        }
+        imu_row(&line, &f).map(Some)
+    })?;
+    Ok((samples, warnings.pop()))
+}
+
+/// One row of `imu.csv`.
+fn imu_row(line: &Line<'_>, f: &[&str]) -> Result<ImuSample, DatasetError> {
+    let [t, ax, ay, az, gx, gy, gz] = f[..] else {
+        return Err(line.malformed(&format!(
+            "expected 7 fields `timestamp, a_x, a_y, a_z, alpha_x, alpha_y, alpha_z`, found {}",
+            f.len()
+        )));
+    };
+    Ok(ImuSample {
+        time_s: number(line, t, "timestamp")?,
+        accel_mps2: DVec3::new(
+            number(line, ax, "a_x")?,
+            number(line, ay, "a_y")?,
+            number(line, az, "a_z")?,
+        ),
+        gyro_radps: DVec3::new(
+            number(line, gx, "alpha_x")?,
+            number(line, gy, "alpha_y")?,
+            number(line, gz, "alpha_z")?,
+        ),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -398,7 +460,7 @@ mod tests {
         assert_eq!(layout.kind, DatasetKind::StrayScanner);
         assert_eq!(
             layout.index_files,
-            vec!["s/camera_matrix.csv", "s/odometry.csv"]
+            vec!["s/camera_matrix.csv", "s/odometry.csv", "s/imu.csv"]
         );
         let seq = parse_sequence(&layout, &names, &texts(), None).expect("parses");
         assert_eq!(seq.preset, CameraPreset::StrayLidar);
@@ -424,6 +486,44 @@ mod tests {
         assert_eq!(seq.odometry.len(), 3);
         assert!(seq.ground_truth.is_empty());
         assert!((seq.odometry[2].1.translation.x - 0.3).abs() < 1e-12);
+        // imu.csv listed but its text not given (the page before reading
+        // it): no samples, no error.
+        assert!(seq.imu.is_empty() && seq.warnings.is_empty());
+    }
+
+    #[test]
+    fn imu_rows_are_read_and_a_cut_off_last_row_is_skipped_with_a_warning() {
+        let imu = "timestamp, a_x, a_y, a_z, alpha_x, alpha_y, alpha_z\n\
+            10.00, 0.1, -9.8, 0.2, 0.01, 0.02, -0.03\n\
+            10.01, 0.1, -9.8, 0.2, 0.01, 0.02, -0.04\n\
+            10.02, 0.1, -9.";
+        let names = names(3, None);
+        let layout = detect_layout(&names).expect("Stray");
+        let mut texts = texts();
+        texts.insert("s/imu.csv".to_owned(), imu.to_owned());
+        let seq = parse_sequence(&layout, &names, &texts, None).expect("parses");
+        assert_eq!(seq.imu.len(), 2);
+        assert!((seq.imu[1].gyro_radps.z + 0.04).abs() < 1e-12);
+        assert!((seq.imu[0].accel_mps2.y + 9.8).abs() < 1e-12);
+        assert_eq!(seq.warnings.len(), 1, "{:?}", seq.warnings);
+        assert!(
+            matches!(&seq.warnings[0], DatasetError::CutOffLine { file, line_number: 4, .. }
+                if file == "s/imu.csv"),
+            "{}",
+            seq.warnings[0]
+        );
+        // Whole: no warning. A bad row before the last: an error.
+        let (whole, warning) =
+            parse_imu("10, 0, 0, 0, 0, 0, 0\n10.01, 0, 0, 0, 0, 0, 0\n", "i.csv").unwrap();
+        assert_eq!((whole.len(), warning), (2, None));
+        let err = parse_imu("10, 0, 0, 0, 0, 0\n10.01, 0, 0, 0, 0, 0, 0\n", "i.csv").unwrap_err();
+        assert!(
+            matches!(err, DatasetError::MalformedLine { line_number: 1, .. }),
+            "{err}"
+        );
+        let err =
+            parse_imu("10, 0, 0, 0, nan, 0, 0\n10.01, 0, 0, 0, 0, 0, 0\n", "i.csv").unwrap_err();
+        assert!(err.to_string().contains("alpha_x"), "{err}");
     }
 
     #[test]

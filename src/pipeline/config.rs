@@ -51,6 +51,16 @@ pub struct SlamConfig {
     /// 0: never; a lost camera then stays lost until it is re-acquired.
     #[serde(default = "default_restart_after_lost")]
     pub restart_after_lost: u32,
+    /// Once the IMU is calibrated ([`crate::Pipeline::push_imu`]), the
+    /// constant-velocity guess a frame is tracked from turns by the gyro's
+    /// rotation since the last placed frame instead of the last step's
+    /// (its translation stays the last step's). Off by default: on the
+    /// synthetic swings (`examples/imu_guess.rs`, 250 frames, calibrated
+    /// at frame 89) depth only went from 20 lost frames and a restart,
+    /// ATE 29.5 cm, to none lost, 7.1 cm; with colour from 3.38 to 3.73
+    /// cm (7 more held frames). No real recording with an IMU has decided.
+    #[serde(default)]
+    pub imu_rotation_guess: bool,
 }
 
 /// [`SlamConfig::restart_after_lost`]'s default, in frames: see `docs/design.md`.
@@ -83,6 +93,7 @@ impl SlamConfig {
             clean_depth_noise: preset.clean_depth_noise(),
             simulate_noise: None,
             restart_after_lost: DEFAULT_RESTART_AFTER_LOST,
+            imu_rotation_guess: false,
         }
     }
 
@@ -205,6 +216,9 @@ pub enum PipelineError {
     /// The frame's timestamp is NaN or infinite (seconds or frame number).
     #[error("timestamp must be a finite number, got {0}")]
     InvalidTimestamp(f64),
+    /// IMU samples were refused ([`crate::Pipeline::push_imu`]).
+    #[error(transparent)]
+    Imu(#[from] crate::imu::ImuError),
 }
 
 /// Refuses a NaN or infinite timestamp: it would end up in the trajectory

@@ -13,6 +13,7 @@
 mod carried;
 mod config;
 mod finish;
+mod imu;
 mod input;
 mod localise;
 mod loop_stage;
@@ -132,6 +133,8 @@ pub struct Pipeline {
     /// before the loss (working colour and camera-frame points), whose
     /// view of the map the segment is looked for in first.
     lost_frame: Option<Box<LastFusedFrame<Vec<u8>, Vec<glam::Vec3>>>>,
+    /// IMU samples, the frames' rotations and the calibration (`imu.rs`).
+    imu: imu::ImuState,
 }
 
 impl Pipeline {
@@ -186,6 +189,7 @@ impl Pipeline {
             localising: None,
             segment: Segment::default(),
             lost_frame: None,
+            imu: imu::ImuState::default(),
         })
     }
 
@@ -287,6 +291,7 @@ impl Pipeline {
         self.camera_fixed = CameraFixedMask::default();
         self.segment = Segment::default();
         self.lost_frame = None;
+        self.reset_imu();
     }
 
     /// Processes one decoded frame stamped `timestamp` (seconds or frame
@@ -406,6 +411,7 @@ impl Pipeline {
         }
         let t4 = now_ms();
         self.count_verdict(tracked.verdict);
+        self.observe_imu(timestamp, &as_tracked, tracked.verdict);
         self.trajectory.push((timestamp, tracked.pose));
         self.online_trajectory.push((timestamp, as_tracked));
         self.frame_index += 1;
@@ -472,15 +478,12 @@ impl Pipeline {
                 checks: TrackingChecks::default(),
             },
             Some(previous) => {
+                let velocity = self.velocity_with_imu(timestamp);
                 let interval_s = self
                     .trajectory
                     .last()
                     .map_or(f64::NAN, |&(before, _)| timestamp - before);
-                self.track_or_recover(
-                    &previous,
-                    (self.velocity, interval_s),
-                    self.counts.lost_streak,
-                )
+                self.track_or_recover(&previous, (velocity, interval_s), self.counts.lost_streak)
             }
         };
         let tracked = self.relocalise_if_lost(tracked);

@@ -27,6 +27,7 @@
 //! its arguments (not on the thread count).
 
 mod hand;
+mod imu;
 mod loop_path;
 mod map_error;
 mod noise;
@@ -38,6 +39,7 @@ mod texture;
 mod trajectory;
 
 pub use hand::hold_hand_in_view;
+pub use imu::{ImuSimulation, STANDARD_GRAVITY_MPS2};
 pub use loop_path::{loop_pose, loop_pose_at};
 pub use map_error::{map_error, MapError};
 pub use noise::{NoiseModel, StructuredLight};
