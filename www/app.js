@@ -65,9 +65,14 @@ function reportError(text) {
   console.warn(`surfel-slam: ${text}`);
 }
 
-/** A camera setting that looks wrong for the data: shown with the errors, kept in status.warnings. */
-function reportWarning(text) {
-  const line = `camera settings: ${text}`;
+/**
+ * A camera setting that looks wrong for the data, or (`about` null) what
+ * was skipped reading a sequence or a reference file, the message naming
+ * the file (a cut-off last row): shown with the errors, kept in
+ * status.warnings.
+ */
+function reportWarning(text, about = 'camera settings') {
+  const line = about ? `${about}: ${text}` : text;
   status.warnings.push(line);
   board.report(line, 'warning');
   status.shownErrors = board.texts();
@@ -397,6 +402,7 @@ const handlers = {
     const colour = msg.colourNote ? `; ${msg.colourNote}` : '';
     sequence.line = `${msg.name} — ${msg.kind}, ${msg.frameCount} frames${gt}, camera ${msg.preset}${colour}`;
     ui.sequenceInfo.textContent = sequence.line;
+    for (const w of msg.readWarnings ?? []) reportWarning(w, null);
     for (const w of msg.warnings ?? []) reportWarning(w);
     if (msg.session) showSession(openedSession ?? msg.name, msg.session);
     setControls();
@@ -508,10 +514,11 @@ const handlers = {
     const latest = plots.latestErrorCm();
     status.positionErrorCm = latest === null ? null : Number(latest.toFixed(3));
     stats.onScore(msg.ate);
-    const by = msg.byFrame ? 'by frame number' : 'by timestamp';
+    const by = msg.key === 'frame' ? 'by frame number' : 'by timestamp';
     sequence.line = `${sequence.line.replace(/; your reference .*$/, '')}; your reference ${msg.name}: ${msg.poses} poses, ${msg.matched} of ${sequence.frameCount} frames matched ${by}`;
     ui.sequenceInfo.textContent = sequence.line;
-    status.userReference = { name: msg.name, format: msg.format, poses: msg.poses, matched: msg.matched };
+    status.userReference = { name: msg.name, key: msg.key, poses: msg.poses, matched: msg.matched };
+    for (const w of msg.warnings ?? []) reportWarning(w, null);
     syncStatus();
   },
 

@@ -37,7 +37,7 @@ export const status = {
   sequenceKind: null,
   errors: [], // every message since the sequence was opened, oldest first
   shownErrors: [], // the messages on the page now, newest first (cleared by a new run or a good Apply)
-  warnings: [], // camera-settings warnings of the current run (layout check, first frame's depth check)
+  warnings: [], // camera-settings warnings of the current run (layout check, first frame's depth check), and what was skipped reading its sequence or reference (a cut-off last row)
   moduleFailures: 0, // times the wasm module failed (each time rebuilt at the next action)
   failed: false, // the module has failed and not been rebuilt yet
   positionErrorCm: null, // last frame's distance to the ground truth (aligned at its first pose), cm
@@ -59,7 +59,7 @@ export const status = {
   framesColourFromVideo: 0, // frames whose colour came from the scan's rgb.mp4, since the last reset
   framesVideoFailed: 0, // frames whose rgb.mp4 picture could not be had, since the last reset
   reference: null, // what the run is compared with: 'ground truth', "device's odometry", 'your reference' or null (www/scoring.js); ate is against it
-  userReference: null, // {name, format, poses, matched}: the reference file loaded with "Reference…" for this sequence (null: none)
+  userReference: null, // {name, key: 'frame' | 'timestamp', poses, matched}: the reference file loaded with "Reference…" for this sequence (null: none)
   driftPlotTitle: null, // {text, fits}: the drift plot's title as last drawn, and whether it fits the plot's width
   mapNotice: null, // what the page says over the map after a whole run that mapped nothing (null: nothing to say)
 };

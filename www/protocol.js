@@ -19,7 +19,7 @@ export const ToWorker = Object.freeze({
   REPLAY: 'replay',
   /** {config} (a Slam config, docs/js-api.md): new Slam, back to frame 0, playing. */
   CONFIG: 'config',
-  /** {name, text}: a reference trajectory file (TUM or `frame, x, y, z, qx, qy, qz, qw` CSV, www/reference.js) to score the open sequence against, as "your reference"; answered by REFERENCE. */
+  /** {name, text}: a reference trajectory file (TUM or `frame, x, y, z, qx, qy, qz, qw` CSV, read by the library's parseReference: www/reference.js) to score the open sequence against, as "your reference"; answered by REFERENCE. */
   REFERENCE: 'reference',
   /** {enabled}: compute Lucas-Kanade tracks for the colour view's overlay. */
   FLOW: 'flow',
@@ -45,7 +45,7 @@ export const ToWorker = Object.freeze({
 export const FromWorker = Object.freeze({
   /** {module: 'threads'|'simd', threads, presets, notes, frameReader}: the module is loaded. */
   READY: 'ready',
-  /** {name, kind, preset, config, frameCount, groundTruth, odometry, fileCount, warnings, presets, colourNote, session?}: a sequence was opened (session: as SESSION_OPENED's, when it goes on from an opened session) (warnings: camera settings that do not fit its layout; presets: every preset at the sequence's frame size, or null; colourNote: where a sequence without colour images gets its colour, or that it plays on depth alone and why, else null). */
+  /** {name, kind, preset, config, frameCount, groundTruth, odometry, fileCount, warnings, readWarnings, presets, colourNote, session?}: a sequence was opened (session: as SESSION_OPENED's, when it goes on from an opened session) (warnings: camera settings that do not fit its layout; readWarnings: parseSequence's, what was skipped reading it, e.g. a cut-off last row; presets: every preset at the sequence's frame size, or null; colourNote: where a sequence without colour images gets its colour, or that it plays on depth alone and why, else null). */
   SEQUENCE: 'sequence',
   /** {index, frameCount, timestamp, result, surfels, refresh, ate ({rmse, ..., pairs, against: 'ground truth' | "device's odometry" | 'your reference'} or null), wasmMemoryBytes, timing, input, flow, colourDecoder, videoError, done}: one frame processed (wasmMemoryBytes: the module's linear memory, its peak; colourDecoder: 'browser', 'wasm' or 'video'; videoError: why its colour could not be taken from the video). */
   FRAME: 'frame',
@@ -53,7 +53,7 @@ export const FromWorker = Object.freeze({
   FRAME_ERROR: 'frame-error',
   /** {name, message, resumed}: a folder could not be opened (the current sequence stays; resumed: it was playing and plays on). */
   LOAD_ERROR: 'load-error',
-  /** {name, format, byFrame, poses, matched, rows, ate} or {name, error}: the reference REFERENCE sent, read (rows: [t, tx, ty, tz, qx, qy, qz, qw] at the sequence's timestamps; matched: frames with a pose; ate: the run so far against it, or null) or refused (the old reference stays). */
+  /** {name, key ('frame' | 'timestamp'), poses, matched, rows, warnings, ate} or {name, error}: the reference REFERENCE sent, read (rows: [t, tx, ty, tz, qx, qy, qz, qw] at the sequence's timestamps; matched: frames with a pose; warnings: a cut-off last row skipped; ate: the run so far against it, or null) or refused (the old reference stays). */
   REFERENCE: 'reference',
   /** {message}: camera settings refused (the current Slam stays). */
   CONFIG_ERROR: 'config-error',

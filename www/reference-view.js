@@ -2,8 +2,8 @@
 // names it: the view's checkbox (hidden when there is none), the drift
 // plot (its title and description), the statistics' ATE line and
 // window.surfelSlamStatus.reference; and the "Reference…" button, which reads a reference
-// trajectory file for the worker (www/reference.js parses it there, as
-// "your reference"). Used by app.js.
+// trajectory file for the worker (the library's parseReference reads it there,
+// www/reference.js, as "your reference"). Used by app.js.
 import { GROUND_TRUTH, ODOMETRY, YOUR_REFERENCE, inProse } from './scoring.js';
 
 export { GROUND_TRUTH, ODOMETRY, YOUR_REFERENCE };

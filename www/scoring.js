@@ -2,10 +2,11 @@
 // sequence's ground truth, else the recording device's own odometry (Stray
 // Scanner's ARKit poses: the CLI's "difference from the device's odometry",
 // not an error, the odometry drifts too), else nothing; a reference
-// trajectory the user loads ("reference…", www/reference.js) replaces
+// trajectory the user loads ("reference…", read by the library's
+// parseReference in www/reference.js) replaces
 // either, named "your reference". The figure is Slam.ate's: RMS after rigid
 // alignment of the whole trajectory, as the CLI computes it.
-import { atFrames, formatTum, parseReference } from './reference.js';
+import { readReference } from './reference.js';
 import { errorText, isModuleFailure, toPlain } from './wasm-module.js';
 
 export const GROUND_TRUTH = 'ground truth';
@@ -45,28 +46,30 @@ export class Scoring {
   }
 
   /**
-   * The user's reference file `{name, text}` for the open sequence `seq`:
-   * the answer for the page, {name, format, poses, matched, rows, ate} (rows
-   * at the sequence's timestamps) or {name, error}; a reference that
-   * matches none of the frames is refused and the old one kept.
+   * The user's reference file `{name, text}` for the open sequence `seq`,
+   * read by the wasm module `wasm`: the answer for the page, {name, key,
+   * poses, matched, rows, warnings, ate} (rows at the sequence's
+   * timestamps) or {name, error}; a reference that matches none of the
+   * frames is refused and the old one kept.
    */
-  loadUser({ name, text }, seq, slam) {
+  loadUser({ name, text }, seq, slam, wasm) {
     if (!seq) return { name, error: 'open a sequence first: the reference is matched to its frames' };
-    let parsed;
+    let ref;
     try {
-      parsed = parseReference(text);
+      ref = readReference(wasm, { name, text }, seq.frames);
     } catch (e) {
+      if (isModuleFailure(e)) throw e;
       return { name, error: errorText(e) };
     }
-    const { rows, matched } = atFrames(parsed, seq.frames);
+    const { key, poses, rows, tum, matched, warnings } = ref;
     if (matched === 0) {
       const span = (list) => (list.length ? `${list[0]} to ${list[list.length - 1]}` : 'none');
-      const keys = parsed.rows.map((r) => r[0]);
-      const what = parsed.byFrame ? `frames ${span(keys)}; the sequence has frames 0 to ${seq.frames.length - 1}` : `timestamps ${span(keys)}; the frames' run ${span(seq.frames.map((f) => f.timestamp))}`;
-      return { name, error: `none of its ${parsed.rows.length} poses falls on a frame of ${seq.name} (${what})` };
+      const keys = poses.map((r) => r[0]);
+      const what = key === 'frame' ? `frames ${span(keys)}; the sequence has frames 0 to ${seq.frames.length - 1}` : `timestamps ${span(keys)}; the frames' run ${span(seq.frames.map((f) => f.timestamp))}`;
+      return { name, error: `none of its ${poses.length} poses falls on a frame of ${seq.name} (${what})` };
     }
     this.name = YOUR_REFERENCE;
-    this.tum = formatTum(rows);
-    return { name, format: parsed.format, byFrame: parsed.byFrame, poses: parsed.rows.length, matched, rows, ate: this.now(slam) };
+    this.tum = tum;
+    return { name, key, poses: poses.length, matched, rows, warnings, ate: this.now(slam) };
   }
 }

@@ -275,6 +275,7 @@ async function load({ name, entries, autoplay, options }, resume) {
     odometry,
     fileCount: paths.length,
     warnings: layoutWarnings(preset),
+    readWarnings: parsed.warnings ?? [],
     presets: presetsAtSize(newConfig),
     colourNote: colour.note,
     session: continued,
@@ -615,7 +616,7 @@ self.onmessage = async (event) => {
       break;
     }
     case ToWorker.REFERENCE:
-      serial(() => post({ type: FromWorker.REFERENCE, ...scoring.loadUser(msg, seq, slam) }));
+      serial(() => post({ type: FromWorker.REFERENCE, ...scoring.loadUser(msg, seq, slam, wasm) }));
       break;
     case ToWorker.PLAY:
       serial(async () => {

@@ -5,7 +5,8 @@
 // downloaded and scored against the clip's truth; the same truth loaded as
 // the user's reference, TUM and CSV: reference-loaded-page.png), a Stray
 // Scanner export (256x192 depth only, confidence images; the RMS difference
-// from its odometry, named as the CLI names it), and a
+// from its odometry, named as the CLI names it; a cut-off last odometry row
+// said in the message box), and a
 // half-copied folder (a missing image skips its frame, by name). All built
 // from the bundled clip, so no ../shared is needed.
 import { test } from 'node:test';
@@ -189,10 +190,13 @@ test('a RealSense folder plays with the intrinsics of its JSON and file numbers 
     assert.ok(title.fits && /drift/.test(title.text) && /cm/.test(title.text), JSON.stringify(title));
     const csvFile = path.join(tmp, 'tracker.csv');
     const rows = truthTum.trim().split('\n').map((l) => l.trim().split(/\s+/).join(', '));
-    fs.writeFileSync(csvFile, ['frame, x, y, z, qx, qy, qz, qw', ...rows].join('\n'));
+    // Its last row cut off (the tracker stopped mid-write): skipped, said by file and line.
+    fs.writeFileSync(csvFile, ['frame, x, y, z, qx, qy, qz, qw', ...rows, `${rows.length}, 0.1`].join('\n'));
     await page.locator('#reference-input').setInputFiles(csvFile);
     const byFrame = await waitForStatus(page, (s) => s.userReference?.name === 'tracker.csv', { timeoutMs: 30_000 });
     assert.ok(Math.abs(byFrame.ate - ate.rmse) < 1e-6, `by frame number: ${byFrame.ate}`);
+    assert.equal(byFrame.userReference.key, 'frame');
+    assert.ok(byFrame.shownErrors.some((m) => new RegExp(`^tracker\\.csv, line ${rows.length + 2}: the last line is cut off`).test(m)), JSON.stringify(byFrame.shownErrors));
     // A file that matches no frame is refused, by name; the reference stays.
     const far = path.join(tmp, 'elsewhere.txt');
     fs.writeFileSync(far, '1000 0 0 0 0 0 0 1\n1001 0 0 0 0 0 0 1\n');
@@ -277,13 +281,20 @@ test('a Stray Scanner folder plays on depth alone, its low-confidence depth drop
   if (skipUnlessReady(t)) return;
   const tmp = tempDir('surfel-slam-page-stray-');
   const { dir } = makeStray(CLIP, FRAMES, tmp);
+  // The app stopped while writing the next frame's odometry row: cut off, its line said, the complete frames all play.
+  const odometryCsv = path.join(dir, 'odometry.csv');
+  const cutLine = fs.readFileSync(odometryCsv, 'utf8').trimEnd().split('\n').length + 1;
+  fs.appendFileSync(odometryCsv, `9999.5, ${FRAMES}, 0.1, 0.2`);
   const env = await startBrowser();
   try {
     const { page, consoleErrors, status } = await playDropped(t, env, dir, 'stray-scanner');
     saveScreenshot('stray-scanner-page.png', await page.screenshot());
     const info = await page.locator('#sequence-info').textContent();
-    t.diagnostic(`${info}; ${status.framesProcessed} frames, ${status.framesLost} lost, ${status.surfels} surfels, errors ${JSON.stringify(status.errors)}`);
+    t.diagnostic(`${info}; ${status.framesProcessed} frames, ${status.framesLost} lost, ${status.surfels} surfels, errors ${JSON.stringify(status.errors)}, shown ${JSON.stringify(status.shownErrors)}`);
     assert.equal(status.error, null, status.error);
+    const cutOff = status.shownErrors.filter((m) => /odometry\.csv/.test(m));
+    assert.equal(cutOff.length, 1, JSON.stringify(status.shownErrors));
+    assert.match(cutOff[0], new RegExp(`^stray_teddy/odometry\\.csv, line ${cutLine}: the last line is cut off`));
     assert.equal(status.framesProcessed, FRAMES);
     assert.equal(status.framesFailed, 0);
     assert.equal(status.framesLost, 0);

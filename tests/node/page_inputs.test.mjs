@@ -1,52 +1,63 @@
 // The page's own readers and texts, without a browser: a reference
-// trajectory file (www/reference.js: TUM, or CSV by frame number), the
+// trajectory file (www/reference.js: the library's parseReference, TUM or
+// CSV by frame number, matched to the frames; needs www/pkg/), the
 // sequence line while a sequence is read (www/sequence.js), what the page
 // says after a run that mapped nothing (www/map-notice.js), and where "Fit
 // map" puts the view (www/view-fit.js).
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { atFrames, formatTum, parseReference, ReferenceError } from '../../www/reference.js';
+import { readFile } from 'node:fs/promises';
+import { readReference } from '../../www/reference.js';
 import { readingLine } from '../../www/sequence.js';
 import { nothingTrackedText } from '../../www/map-notice.js';
 import { fitPoints } from '../../www/view-fit.js';
 
 const frames = [0.5, 0.533, 0.566, 0.6].map((timestamp, index) => ({ index, timestamp }));
 
+// The page's module (scripts/build.sh puts it in www/pkg/): the library's parseReference.
+const pkg = new URL('../../www/pkg/', import.meta.url);
+const wasm = await import(new URL('surfel_slam.js', pkg));
+await wasm.default({ module_or_path: await readFile(new URL('surfel_slam_bg.wasm', pkg)) });
+const read = (name, text) => readReference(wasm, { name, text }, frames);
+
 test('a TUM reference reads as timestamped poses, quaternions normalised', () => {
-  const r = parseReference('# ground truth\n0.5 1 2 3 0 0 0 2\n0.566 1.1 2 3 0 0 0.6 0.8\n\n');
-  assert.equal(r.format, 'tum');
-  assert.equal(r.byFrame, false);
-  assert.deepEqual(r.rows[0], [0.5, 1, 2, 3, 0, 0, 0, 1]);
-  const { rows, matched } = atFrames(r, frames);
-  assert.equal(rows.length, 2);
-  assert.equal(matched, 2);
-  assert.match(formatTum(rows), /^# timestamp tx ty tz qx qy qz qw\n0\.5 1 2 3 0 0 0 1\n/);
+  const r = read('tracker.txt', '# ground truth\n0.5 1 2 3 0 0 0 2\n0.566 1.1 2 3 0 0 0.6 0.8\n\n');
+  assert.equal(r.key, 'timestamp');
+  assert.deepEqual(Array.from(r.poses[0]), [0.5, 1, 2, 3, 0, 0, 0, 1]);
+  assert.equal(r.rows.length, 2);
+  assert.equal(r.matched, 2);
+  assert.deepEqual(r.warnings, []);
+  assert.match(r.tum, /^# timestamp tx ty tz qx qy qz qw\n0\.5\d* 1\.0* 2\.0* 3\.0* 0\.0* 0\.0* 0\.0* 1\.0*\n/);
 });
 
-test('a CSV reference by frame number takes the frames\' timestamps', () => {
-  const r = parseReference('frame, x, y, z, qx, qy, qz, qw\n0, 0, 0, 0, 0, 0, 0, 1\n3, 0.1, 0, 0, 0, 0, 0, 1\n9, 5, 5, 5, 0, 0, 0, 1\n');
-  assert.equal(r.format, 'csv');
-  assert.equal(r.byFrame, true);
-  const { rows, matched } = atFrames(r, frames);
-  assert.deepEqual(rows.map((row) => row[0]), [0.5, 0.6], 'frame 9 is past the sequence');
-  assert.equal(matched, 2);
+test("a CSV reference by frame number (from 0) takes the frames' timestamps", () => {
+  const r = read('tracker.csv', 'frame, x, y, z, qx, qy, qz, qw\n0, 0, 0, 0, 0, 0, 0, 1\n3, 0.1, 0, 0, 0, 0, 0, 1\n9, 5, 5, 5, 0, 0, 0, 1\n');
+  assert.equal(r.key, 'frame');
+  assert.equal(r.poses.length, 3);
+  assert.deepEqual(r.rows.map((row) => row[0]), [0.5, 0.6], 'frame 9 is past the sequence');
+  assert.equal(r.matched, 2);
   // Columns in another order, a timestamp column instead of frame numbers.
-  const t = parseReference('qw,qx,qy,qz,timestamp,x,y,z\n1,0,0,0,0.533,1,2,3\n');
-  assert.equal(t.byFrame, false);
+  const t = read('tracker.csv', 'qw,qx,qy,qz,timestamp,x,y,z\n1,0,0,0,0.533,1,2,3\n');
+  assert.equal(t.key, 'timestamp');
   assert.deepEqual(t.rows, [[0.533, 1, 2, 3, 0, 0, 0, 1]]);
-  assert.equal(atFrames(t, frames).matched, 1);
+  assert.equal(t.matched, 1);
+  // A cut-off last row (the recorder stopped mid-write) is skipped, said.
+  const cut = read('cut.csv', 'frame, x, y, z, qx, qy, qz, qw\n0, 0, 0, 0, 0, 0, 0, 1\n1, 0, 0');
+  assert.equal(cut.poses.length, 1);
+  assert.equal(cut.warnings.length, 1);
+  assert.match(cut.warnings[0], /cut\.csv, line 3/);
 });
 
-test('a reference that cannot be read names the line', () => {
+test('a reference that cannot be read names the file and the line', () => {
   const cases = [
-    ['', /no poses/],
-    ['0.5 1 2 3 0 0 0\n', /line 1: 7 values/],
-    ['0.5 1 2 3 0 0 0 1\n0.6 1 x 3 0 0 0 1\n', /line 2: "x" is not a number/],
-    ['0.5 1 2 3 0 0 0 0\n', /line 1: the quaternion is zero/],
-    ['frame,x,y,z\n0,1,2,3\n', /lacks qx, qy, qz, qw/],
-    ['frame,x,y,z,qx,qy,qz,qw\n1.5,0,0,0,0,0,0,1\n', /line 2: frame 1.5 is not a frame number/],
+    ['', /no pose/],
+    ['0.5 1 2 3 0 0 0\n0.6 1 2 3 0 0 0 1\n', /r\.txt, line 1: .*expected 8 numbers/],
+    ['0.5 1 2 3 0 0 0 1\n0.6 1 x 3 0 0 0 1\n0.7 1 2 3 0 0 0 1\n', /r\.txt, line 2/],
+    ['0.5 1 2 3 0 0 0 0\n0.6 1 2 3 0 0 0 1\n', /r\.txt, line 1: .*zero quaternion/],
+    ['frame,x,y,z\n0,1,2,3\n', /r\.txt, line 1: .*no `qx` column/],
+    ['frame,x,y,z,qx,qy,qz,qw\n1.5,0,0,0,0,0,0,1\n2,0,0,0,0,0,0,1\n', /r\.txt, line 2: .*whole number/],
   ];
-  for (const [text, message] of cases) assert.throws(() => parseReference(text), (e) => e instanceof ReferenceError && message.test(e.message), text);
+  for (const [text, message] of cases) assert.throws(() => read('r.txt', text), (e) => message.test(String(e?.message ?? e)), text);
 });
 
 test('the sequence line says what is read: an archive by name and size, a folder by its files', () => {
