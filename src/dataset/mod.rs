@@ -28,6 +28,7 @@ pub mod icl_nuim;
 mod lines;
 mod open;
 pub mod realsense;
+pub mod rosbag;
 pub mod seven_scenes;
 pub mod stray;
 pub mod trajectory;
@@ -139,6 +140,16 @@ pub enum DatasetError {
         /// What is wrong with it.
         reason: String,
     },
+    /// A RealSense `.bag` (or one of its frames) could not be read, or
+    /// (in [`Sequence::warnings`]) was read with a warning.
+    #[error("{path}: {source}")]
+    Rosbag {
+        /// The bag file.
+        path: String,
+        /// What is wrong with it.
+        #[source]
+        source: rosbag::RosbagError,
+    },
     /// An image of a frame could not be decoded.
     #[error("{path}: {source}")]
     Frame {
@@ -169,11 +180,15 @@ pub enum DatasetKind {
     /// `odometry.csv`, optional `rgb/NNNNNN.jpg` (frames extracted from
     /// `rgb.mp4`).
     StrayScanner,
+    /// Intel RealSense as librealsense records it (RealSense Viewer,
+    /// `rs-record`, up to 2.57): one ROS1 `.bag` file ([`rosbag`]),
+    /// recognised by its first bytes.
+    RealSenseBag,
 }
 
 impl DatasetKind {
     /// Short human-readable name (`TUM RGB-D`, `ICL-NUIM`, `7-Scenes`,
-    /// `RealSense`, `Stray Scanner`).
+    /// `RealSense`, `Stray Scanner`, `RealSense .bag`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
@@ -182,6 +197,7 @@ impl DatasetKind {
             Self::SevenScenes => "7-Scenes",
             Self::RealSense => "RealSense",
             Self::StrayScanner => "Stray Scanner",
+            Self::RealSenseBag => "RealSense .bag",
         }
     }
 }
@@ -258,6 +274,10 @@ pub struct Sequence {
     /// depth's 256x192), pixels; they win over [`Self::preset`]'s. `None`
     /// for layouts whose camera is a preset.
     pub intrinsics: Option<Intrinsics>,
+    /// Raw depth units per metre that the recording itself gives (a
+    /// RealSense `.bag`'s depth units option: 1 / units); it wins over
+    /// [`Self::preset`]'s. `None` for the layouts that say nothing.
+    pub depth_scale: Option<f32>,
     /// Frames, in time order.
     pub frames: Vec<FrameEntry>,
     /// Ground truth `(timestamp, world_from_camera)`, sorted by timestamp,
@@ -501,6 +521,13 @@ pub fn parse_sequence(
             odometry = parsed.odometry;
             (CameraPreset::StrayLidar, parsed.frames, Vec::new())
         }
+        DatasetKind::RealSenseBag => {
+            return Err(DatasetError::UnknownLayout {
+                hint: "a RealSense .bag is one file, read by its bytes (DatasetSource::open), \
+                       not a listing of files"
+                    .to_owned(),
+            })
+        }
     };
     if frames.is_empty() {
         return Err(DatasetError::NoFrames);
@@ -519,6 +546,7 @@ pub fn parse_sequence(
         kind: layout.kind,
         preset,
         intrinsics,
+        depth_scale: None,
         frames,
         ground_truth,
         odometry,
