@@ -392,3 +392,100 @@ fn hostile_bags_are_errors_never_panics() {
         }
     }
 }
+
+/// The bundled TUM clip's first frames written as librealsense writes a
+/// recording (depth `mono16` at its own stamps, colour `rgb8` at its own,
+/// identity extrinsics to reference stream 1, `Depth_Units` 0.0002, the
+/// fr3 intrinsics for both cameras) decode to the very frames the folder
+/// gives: the run cannot tell them apart.
+#[test]
+fn a_bag_of_the_clip_decodes_to_the_folders_frames() {
+    let clip = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("www/sample/tum_fr3_teddy_clip");
+    let mut folder = DatasetSource::open(&clip).unwrap();
+    let seq = folder.sequence().unwrap();
+    let frames = &seq.frames[..6];
+    let (w, h) = (640u32, 480u32);
+    let mut bag = Bag::new("lz4");
+    let k = [535.4, 539.2, 320.1, 247.6];
+    let info = camera_info(w, h, "Brown Conrady", &[0.0; 5], k);
+    let identity = transform([0.0; 3], [0.0, 0.0, 0.0, 1.0]);
+    bag.chunk(&[
+        (
+            "/device_0/sensor_0/Depth_0/info/camera_info",
+            "sensor_msgs/CameraInfo",
+            0,
+            info.clone(),
+        ),
+        (
+            "/device_0/sensor_1/Color_0/info/camera_info",
+            "sensor_msgs/CameraInfo",
+            0,
+            info,
+        ),
+        (
+            "/device_0/sensor_0/option/Depth_Units/value",
+            "std_msgs/Float32",
+            0,
+            float32(0.0002),
+        ),
+        (
+            "/device_0/sensor_0/Depth_0/tf/1",
+            "geometry_msgs/Transform",
+            0,
+            identity.clone(),
+        ),
+        (
+            "/device_0/sensor_1/Color_0/tf/1",
+            "geometry_msgs/Transform",
+            0,
+            identity,
+        ),
+    ]);
+    let ns = |t: f64| (t * 1e9).round() as u64;
+    for f in frames {
+        // TUM names each image by its stamp: depth/1341841873.290604.png.
+        let stem = f.depth.rsplit('/').next().unwrap().trim_end_matches(".png");
+        let depth_t: f64 = stem.parse().unwrap();
+        let depth = image::open(clip.join(&f.depth)).unwrap().into_luma16();
+        let depth: Vec<u8> = depth
+            .as_raw()
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let colour = image::open(clip.join(f.colour.as_ref().unwrap()))
+            .unwrap()
+            .into_rgb8();
+        bag.chunk(&[(
+            DEPTH,
+            "sensor_msgs/Image",
+            ns(depth_t),
+            image(ns(depth_t), w, h, "mono16", &depth),
+        )]);
+        bag.chunk(&[(
+            COLOUR,
+            "sensor_msgs/Image",
+            ns(f.timestamp),
+            image(ns(f.timestamp), w, h, "rgb8", colour.as_raw()),
+        )]);
+    }
+    let dir = common::scratch("rosbag-clip");
+    let path = dir.0.join("clip.bag");
+    std::fs::write(&path, bag.finish(true)).unwrap();
+    let mut source = DatasetSource::open(&path).unwrap();
+    let bag_seq = source.sequence().unwrap();
+    assert!(bag_seq.warnings.is_empty(), "{:?}", bag_seq.warnings);
+    assert_eq!(bag_seq.depth_scale, Some(5000.0), "the folder's scale");
+    assert_eq!(bag_seq.frames.len(), frames.len());
+    let settings = surfel_slam::CameraPreset::TumFr3.depth_settings();
+    for (a, b) in frames.iter().zip(&bag_seq.frames) {
+        assert!(b.colour.is_some(), "paired");
+        let from_folder = folder.read_frame(a, &settings).unwrap();
+        let from_bag = source.read_frame(b, &settings).unwrap();
+        assert!(
+            from_folder.depth_m == from_bag.depth_m,
+            "depth of {}",
+            a.depth
+        );
+        assert!(from_folder.rgb == from_bag.rgb, "colour of {}", b.depth);
+    }
+}

@@ -286,7 +286,11 @@ fn check_settings(
     slam: &mut Pipeline,
 ) {
     let chosen = args.camera.preset.unwrap_or(sequence.preset);
-    slam.check_layout(sequence.preset, chosen);
+    if sequence.depth_scale.is_some() {
+        slam.check_recorded_layout(sequence.preset, chosen);
+    } else {
+        slam.check_layout(sequence.preset, chosen);
+    }
     if let DatasetSource::Bag { .. } = source {
         if let Ok(raw) = source.read_raw(first) {
             slam.check_depth_raw(&raw.depth);

@@ -1,6 +1,7 @@
 //! RGB-D dataset loaders (TUM RGB-D, ICL-NUIM, Microsoft 7-Scenes, Intel
 //! RealSense as Open3D's recorder writes it, iPhone LiDAR as the Stray
-//! Scanner app exports it) and the trajectory files (the surfel map's PLY file is in [`crate::mesh::surfel_ply`]).
+//! Scanner app exports it, a RealSense `.bag` recording: [`rosbag`]) and the
+//! trajectory files (the surfel map's PLY file is in [`crate::mesh::surfel_ply`]).
 //!
 //! Parsing works in two pure steps on strings so that the browser (which only
 //! has a list of file names and can read text files on request) and the native

@@ -1,8 +1,8 @@
 //! A RealSense recording found in a bag's messages: the depth stream (a
 //! `sensor_msgs/Image` topic of 16-bit depth, `.../Depth_0/image/data` as
 //! librealsense names it), the colour stream if any, each one's
-//! `camera_info` (`.../info/camera_info`) and extrinsics (`.../tf/0`, from
-//! the device's reference stream to this one), the depth units option
+//! `camera_info` (`.../info/camera_info`) and extrinsics (`.../tf/N`, from
+//! the device's reference stream N to this one), the depth units option
 //! (`/device_0/sensor_0/option/Depth Units/value`, metres per unit), the
 //! IMU samples; then colour paired with depth by timestamp.
 
@@ -183,15 +183,26 @@ fn camera_info_of<'a>(c: &'a Collected, image_topic: &str) -> Option<&'a CameraI
         })
 }
 
-/// The extrinsics `<stream>/tf/0`: reference stream to this one.
-fn extrinsics_of(c: &Collected, image_topic: &str) -> Option<DAffine3> {
-    let (t, q) = c
+/// The extrinsics `<stream>/tf/<reference>` of the reference stream
+/// `reference` (librealsense writes `tf/0` or `tf/1`: the id of the
+/// device's reference stream), or of the lowest reference when `None`:
+/// the reference and the transform from it to this stream.
+fn extrinsics_of<'a>(
+    c: &'a Collected,
+    image_topic: &str,
+    reference: Option<&str>,
+) -> Option<(&'a str, DAffine3)> {
+    let prefix = format!("{}/tf/", parent(image_topic, 2));
+    let (id, (t, q)) = c
         .transforms
-        .get(&format!("{}/tf/0", parent(image_topic, 2)))?;
+        .iter()
+        .filter_map(|(topic, tf)| Some((topic.strip_prefix(&prefix)?, tf)))
+        .filter(|(id, _)| reference.is_none_or(|r| r == *id))
+        .min_by_key(|(id, _)| *id)?;
     let q = DQuat::from_xyzw(q[0], q[1], q[2], q[3]);
     let t = DVec3::from_array(*t);
     (q.is_finite() && t.is_finite() && q.length() > 0.5)
-        .then(|| DAffine3::from_rotation_translation(q.normalize(), t))
+        .then(|| (id, DAffine3::from_rotation_translation(q.normalize(), t)))
 }
 
 impl Recording {
@@ -320,11 +331,11 @@ fn colour_stream(
     if let Some(first) = c.images.get(&topic).map(|i| &i.first) {
         check_size(&colour, first, &topic)?;
     }
-    let (Some(to_depth), Some(to_colour)) =
-        (extrinsics_of(c, depth_topic), extrinsics_of(c, &topic))
-    else {
+    let depth_tf = extrinsics_of(c, depth_topic, None);
+    let colour_tf = depth_tf.and_then(|(id, _)| extrinsics_of(c, &topic, Some(id)));
+    let (Some((_, to_depth)), Some((_, to_colour))) = (depth_tf, colour_tf) else {
         warnings.push(no_colour(
-            "the recording gives no extrinsics (tf/0) of both streams".to_owned(),
+            "the recording gives no extrinsics (tf/N) of both streams to one reference".to_owned(),
         ));
         return Ok(None);
     };
