@@ -365,6 +365,19 @@ fn hostile_bags_are_errors_never_panics() {
     let bytes = written_bag("lz4", 2, true);
     let finished = RealSenseBag::open(Cursor::new(bytes.clone())).expect("whole");
     assert_eq!(finished.recording().frames.len(), 2);
+    // Cut in the index at the end: every chunk is whole, one warning.
+    let bag = RealSenseBag::open(Cursor::new(bytes[..bytes.len() - 10].to_vec())).expect("opens");
+    assert_eq!(bag.recording().frames.len(), 2);
+    let warnings: Vec<String> = bag
+        .recording()
+        .warnings
+        .iter()
+        .map(ToString::to_string)
+        .collect();
+    assert!(
+        warnings.len() == 1 && warnings[0].contains("index") && warnings[0].contains("3 chunks"),
+        "{warnings:?}"
+    );
     // Every cut: an error, or (past the first frame's chunk) fewer frames.
     for cut in (0..bytes.len()).step_by(7) {
         if let Ok(mut bag) = RealSenseBag::open(Cursor::new(bytes[..cut].to_vec())) {

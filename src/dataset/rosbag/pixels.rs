@@ -42,10 +42,14 @@ fn rows<'a>(
             "a row step of {step} bytes for {w} pixels of {bpp} bytes"
         )));
     }
-    let pixels = data
-        .get(head.data_offset..head.data_offset + head.data_len)
+    let pixels = head
+        .data_offset
+        .checked_add(head.data_len)
+        .and_then(|end| data.get(head.data_offset..end))
         .ok_or_else(|| bad("the pixels lie past the message".to_owned()))?;
-    if pixels.len() < step * (h - 1) + w * bpp {
+    // In u64: a forged step must not wrap a 32-bit usize (wasm).
+    let needed = head.step as u64 * (h as u64 - 1) + (w * bpp) as u64;
+    if (pixels.len() as u64) < needed {
         return Err(bad(format!(
             "{} bytes of pixels for {h} rows of {step} bytes",
             pixels.len()

@@ -77,9 +77,11 @@ impl<R: Read + Seek> RealSenseBag<R> {
             self.cached = Some((location.chunk_pos, bytes));
         }
         let start = location.offset as usize;
+        let end = start.checked_add(location.len as usize);
         self.cached
             .as_ref()
-            .and_then(|(_, bytes)| bytes.get(start..start + location.len as usize))
+            .zip(end)
+            .and_then(|((_, bytes), end)| bytes.get(start..end))
             .ok_or(RosbagError::Corrupt {
                 offset: location.chunk_pos,
                 reason: "a message past its chunk".to_owned(),

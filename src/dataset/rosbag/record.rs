@@ -15,6 +15,10 @@ pub const MAGIC: &[u8; 13] = b"#ROSBAG V2.0\n";
 /// its data).
 const MAX_HEADER_BYTES: u64 = 1 << 20;
 
+/// Largest connection record's data accepted, bytes (its message
+/// definition: a few kilobytes).
+pub(crate) const MAX_CONNECTION_BYTES: u32 = 1 << 20;
+
 /// The record kinds of format 2.0 (the header field `op`).
 pub(crate) mod op {
     /// A message: `conn`, `time`; the data is the serialised message.
@@ -185,11 +189,19 @@ pub(crate) fn read_head<R: Read + Seek>(
     })
 }
 
-/// Reads a record's data (its length already checked against the file).
+/// Reads a record's data (its length already checked against the file),
+/// refusing more than `max` bytes.
 pub(crate) fn read_data<R: Read + Seek>(
     r: &mut R,
     head: &RecordHead,
+    max: u32,
 ) -> Result<Vec<u8>, RosbagError> {
+    if head.data_len > max {
+        return Err(corrupt(
+            head.pos,
+            &format!("a record of {} bytes (at most {max})", head.data_len),
+        ));
+    }
     r.seek(SeekFrom::Start(head.data_pos)).map_err(|e| io(&e))?;
     let mut data = vec![0u8; head.data_len as usize];
     r.read_exact(&mut data).map_err(|e| io(&e))?;

@@ -231,6 +231,11 @@ impl Recording {
                 what: format!("the depth stream's camera_info (beside {depth_topic})"),
             })?;
         let depth = CameraModel::from_camera_info(depth_info, &depth_topic)?;
+        if let Some(problem) = depth.intrinsics().problem() {
+            return Err(RosbagError::MissingCalibration {
+                what: format!("the depth stream's camera_info (beside {depth_topic}): {problem}"),
+            });
+        }
         let depth_images = c.images.get(&depth_topic).map(|i| &i.first);
         if let Some(first) = depth_images {
             check_size(&depth, first, &depth_topic)?;
@@ -328,6 +333,10 @@ fn colour_stream(
         return Ok(None);
     };
     let colour = CameraModel::from_camera_info(info, &topic)?;
+    if let Some(problem) = colour.intrinsics().problem() {
+        warnings.push(no_colour(format!("its camera_info: {problem}")));
+        return Ok(None);
+    }
     if let Some(first) = c.images.get(&topic).map(|i| &i.first) {
         check_size(&colour, first, &topic)?;
     }

@@ -8,6 +8,7 @@ use glam::{DAffine3, DVec3};
 
 use super::message::CameraInfo;
 use super::RosbagError;
+use crate::camera::Intrinsics;
 use crate::dataset::DEPTH_ONLY_GREY;
 
 /// A lens distortion model, as librealsense projects with it; coefficients
@@ -108,6 +109,19 @@ impl CameraModel {
         })
     }
 
+    /// The pinhole part as the pipeline's [`Intrinsics`] (f32).
+    #[must_use]
+    pub fn intrinsics(&self) -> Intrinsics {
+        Intrinsics::new(
+            self.fx as f32,
+            self.fy as f32,
+            self.cx as f32,
+            self.cy as f32,
+            self.width,
+            self.height,
+        )
+    }
+
     /// The pixel where the camera sees point `p` (camera frame, metres),
     /// if in front of it.
     fn project(&self, p: DVec3) -> Option<(f64, f64)> {
@@ -154,10 +168,15 @@ impl Registration {
     /// `out`) of each pixel of `depth_raw` (`units_m` metres per unit, 0 =
     /// none), sampled from `colour_rgb` (RGB8 at the colour camera's size).
     /// A pixel without depth takes the colour where the frame's mean depth
-    /// would put it; one the colour camera does not see is grey.
+    /// would put it; one the colour camera does not see is grey. Depth of
+    /// another length than the depth camera's size gives no colour (`out`
+    /// empty).
     pub fn register(&self, depth_raw: &[u16], units_m: f64, colour_rgb: &[u8], out: &mut Vec<u8>) {
         let (w, h) = (self.depth.width, self.depth.height);
         out.clear();
+        if w == 0 || depth_raw.len() != w * h {
+            return;
+        }
         if self.is_identity() && colour_rgb.len() == 3 * w * h {
             out.extend_from_slice(colour_rgb);
             return;
@@ -197,6 +216,9 @@ impl Registration {
 /// The colour at `(u, v)` (pixel centres at integers) of an RGB8 image,
 /// bilinearly; `None` outside it.
 fn bilinear(rgb: &[u8], width: usize, height: usize, u: f64, v: f64) -> Option<[u8; 3]> {
+    if width == 0 || height == 0 {
+        return None;
+    }
     if !(u >= 0.0 && v >= 0.0 && u <= (width - 1) as f64 && v <= (height - 1) as f64) {
         return None;
     }

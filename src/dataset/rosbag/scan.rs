@@ -9,8 +9,10 @@
 use std::collections::HashMap;
 use std::io::{Read, Seek};
 
-use super::chunk::decompress;
-use super::record::{corrupt, inner_record, op, read_data, read_head, Fields, MAGIC};
+use super::chunk::{decompress, MAX_CHUNK_BYTES};
+use super::record::{
+    corrupt, inner_record, op, read_data, read_head, Fields, MAGIC, MAX_CONNECTION_BYTES,
+};
 use super::RosbagError;
 
 /// A connection: one topic with one message type.
@@ -43,7 +45,8 @@ pub(crate) struct Scanned {
     pub connections: HashMap<u32, Connection>,
     /// Complete chunks read.
     pub chunks: usize,
-    /// Why the bag's end was not read, for an unfinished bag (one warning).
+    /// Why the bag's end was not read, for an unfinished bag or a damaged
+    /// index (one warning).
     pub cut_off: Option<String>,
 }
 
@@ -90,13 +93,25 @@ pub(crate) fn scan<R: Read + Seek>(
     while pos < file_len {
         match scan_record(r, pos, file_len, &mut out, &mut visit) {
             Ok(next) => pos = next,
-            Err(e) if unfinished && !matches!(e, RosbagError::UnsupportedCompression { .. }) => {
+            Err(RosbagError::UnsupportedCompression { compression }) => {
+                return Err(RosbagError::UnsupportedCompression { compression })
+            }
+            Err(e) if unfinished => {
                 out.cut_off = Some(format!(
                     "an unfinished recording (no index): the {} complete chunks are read, \
                      the rest, from byte {pos} of {file_len}, is cut off ({e})",
                     out.chunks
                 ));
                 break;
+            }
+            // The index is not needed: the chunks before it are whole.
+            Err(e) if pos >= index_pos => {
+                out.cut_off = Some(format!(
+                    "the bag's index (from byte {index_pos}) is damaged or cut off: its {} \
+                     chunks are read ({e})",
+                    out.chunks
+                ));
+                return Ok(out);
             }
             Err(e) => return Err(e),
         }
@@ -122,19 +137,24 @@ fn scan_record<R: Read + Seek>(
     let head = read_head(r, pos, file_len)?;
     match head.op {
         op::CHUNK => {
-            let bytes = decompress(&head, &read_data(r, &head)?)?;
+            let bytes = decompress(&head, &read_data(r, &head, MAX_CHUNK_BYTES)?)?;
             let messages = chunk_records(&bytes, pos, &mut out.connections)?;
             out.chunks += 1;
             for (conn, location) in messages {
                 let start = location.offset as usize;
-                let data = bytes
-                    .get(start..start + location.len as usize)
+                let data = start
+                    .checked_add(location.len as usize)
+                    .and_then(|end| bytes.get(start..end))
                     .ok_or_else(|| corrupt(pos, "a message past its chunk"))?;
                 visit(&conn, location, data)?;
             }
         }
         op::CONNECTION => {
-            let c = connection(&head.fields, &read_data(r, &head)?, pos)?;
+            let c = connection(
+                &head.fields,
+                &read_data(r, &head, MAX_CONNECTION_BYTES)?,
+                pos,
+            )?;
             out.connections.entry(c.id).or_insert(c);
         }
         op::INDEX_DATA | op::CHUNK_INFO => {}
@@ -207,5 +227,5 @@ pub(crate) fn read_chunk<R: Read + Seek>(
     if head.op != op::CHUNK {
         return Err(corrupt(chunk_pos, "a message's chunk is not a chunk"));
     }
-    decompress(&head, &read_data(r, &head)?)
+    decompress(&head, &read_data(r, &head, MAX_CHUNK_BYTES)?)
 }

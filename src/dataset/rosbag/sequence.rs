@@ -2,7 +2,7 @@
 //! named by its topic and stamp (the names errors give), the depth
 //! camera's intrinsics and the recording's depth scale.
 
-use crate::camera::{CameraPreset, Intrinsics};
+use crate::camera::CameraPreset;
 use crate::dataset::{DatasetError, DatasetKind, FrameEntry, Sequence};
 
 use super::Recording;
@@ -42,14 +42,7 @@ pub fn sequence_of(recording: &Recording, path: &str) -> Sequence {
     Sequence {
         kind: DatasetKind::RealSenseBag,
         preset: CameraPreset::RealSenseD400,
-        intrinsics: Some(Intrinsics::new(
-            d.fx as f32,
-            d.fy as f32,
-            d.cx as f32,
-            d.cy as f32,
-            d.width,
-            d.height,
-        )),
+        intrinsics: Some(d.intrinsics()),
         depth_scale: Some((1.0 / recording.depth_units_m) as f32),
         frames,
         ground_truth: Vec::new(),
