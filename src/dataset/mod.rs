@@ -27,6 +27,7 @@ pub mod archive;
 mod decode;
 pub mod icl_nuim;
 mod lines;
+pub mod mkv;
 mod open;
 pub mod realsense;
 pub mod rosbag;
