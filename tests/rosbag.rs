@@ -155,6 +155,15 @@ fn a_cut_recording_plays_its_complete_frames_with_one_warning() {
             1536
         );
     }
+    // Cut before its first chunk ends: no frame, refused, both said.
+    let err = RealSenseBag::open(Cursor::new(cut_sample(&path, true)[..5000].to_vec()))
+        .err()
+        .expect("no frame");
+    let text = err.to_string();
+    assert!(
+        text.contains("no depth stream") && text.contains("unfinished"),
+        "{text}"
+    );
     // The command line plays it: one frame, exit 0, the warning once.
     let dir = common::scratch("rosbag-cut");
     let cut = dir.0.join("cut.bag");

@@ -151,6 +151,15 @@ pub enum RosbagError {
         /// The units taken, metres.
         assumed_m: f64,
     },
+    /// The recording could not be used, and its file is cut short (an
+    /// unfinished recording): both said.
+    #[error("{source}; {cut_off}")]
+    CutShort {
+        /// Why the recording could not be used.
+        source: Box<RosbagError>,
+        /// Where the file is cut short.
+        cut_off: String,
+    },
     /// A frame index past the recording's frames.
     #[error("frame {index} of {frames}")]
     NoSuchFrame {

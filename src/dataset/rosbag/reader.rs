@@ -50,7 +50,17 @@ impl<R: Read + Seek> RealSenseBag<R> {
         let scanned = scan(&mut reader, file_len, |conn, location, data| {
             collected.visit(conn, location, data)
         })?;
-        let mut recording = Recording::from_collected(collected)?;
+        let recording = Recording::from_collected(collected);
+        let mut recording = match (recording, &scanned.cut_off) {
+            (Ok(r), _) => r,
+            (Err(e), Some(cut_off)) => {
+                return Err(RosbagError::CutShort {
+                    source: Box::new(e),
+                    cut_off: cut_off.clone(),
+                })
+            }
+            (Err(e), None) => return Err(e),
+        };
         if let Some(why) = scanned.cut_off {
             recording.warnings.insert(0, RosbagError::Unfinished(why));
         }
