@@ -4,15 +4,17 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use std::path::PathBuf;
-use surfel_slam::dataset::Sequence;
+use surfel_slam::dataset::rosbag::RawFrame;
+use surfel_slam::dataset::{DatasetKind, DatasetSource, Sequence, DEPTH_ONLY_GREY};
 use surfel_slam::eval::ate;
-use surfel_slam::{Pipeline, SlamConfig, StageTimings, Verdict};
+use surfel_slam::{FrameReport, Pipeline, PipelineError, SlamConfig, StageTimings, Verdict};
 
 use crate::{at_frame_size, config_for, CameraOverrides, TrackingArgs, MAX_DT};
 
 #[derive(Args)]
 pub struct BenchArgs {
-    /// Dataset folder (layout detected automatically).
+    /// Dataset folder (layout detected automatically), or RealSense
+    /// recording (.bag: its frames decoded and registered up front).
     dataset: PathBuf,
     /// Frames to process; past the sequence's end it is played backwards,
     /// then forwards again, so the camera motion stays continuous
@@ -114,8 +116,27 @@ fn stage_medians(timings: &[StageTimings]) -> Vec<(&'static str, f64)> {
 /// mostly in cache.
 const INTERLEAVE: usize = 25;
 
-/// Colour and depth PNG bytes of one frame.
-type PngPair = (Vec<u8>, Vec<u8>);
+/// One frame as read up front: a folder's colour and depth PNG bytes, or
+/// a `.bag`'s raw depth with its colour registered to it (no colour: grey).
+enum FrameInput {
+    Png(Vec<u8>, Vec<u8>),
+    Raw(RawFrame),
+}
+
+impl FrameInput {
+    /// Pushes the frame: `push_png`, or `push_raw` (the depth converted
+    /// to metres in the frame's time, its decoding and registration not).
+    fn push(&self, slam: &mut Pipeline, timestamp: f64) -> Result<FrameReport, PipelineError> {
+        match self {
+            Self::Png(colour, depth) => slam.push_png(colour, depth, timestamp),
+            Self::Raw(f) if f.rgb.is_empty() => {
+                let grey = vec![DEPTH_ONLY_GREY; 3 * f.width * f.height];
+                slam.push_raw(f.width, f.height, &grey, &f.depth, timestamp)
+            }
+            Self::Raw(f) => slam.push_raw(f.width, f.height, &f.rgb, &f.depth, timestamp),
+        }
+    }
+}
 
 /// Verdicts of a run that are not plain tracking.
 #[derive(Default)]
@@ -132,14 +153,13 @@ struct Counts {
 /// by fusion, or `None` when the frame was refused.
 fn play(
     slam: &mut Pipeline,
-    frames: &[PngPair],
+    frames: &[FrameInput],
     sequence: &Sequence,
     i: usize,
     counts: &mut Counts,
 ) -> Option<(StageTimings, (f64, f64))> {
     let k = ping_pong(i, frames.len());
-    let (colour, depth) = &frames[k];
-    match slam.push_png(colour, depth, sequence.frames[k].timestamp) {
+    match frames[k].push(slam, sequence.frames[k].timestamp) {
         Ok(report) => {
             match report.verdict {
                 Verdict::Lost(_) => counts.lost += 1,
@@ -183,11 +203,23 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
 
 /// The sequence and every frame's colour and depth PNG bytes, read up
 /// front so that disk speed is not part of the timings.
-fn read_sequence(args: &BenchArgs) -> Result<(Sequence, Vec<PngPair>)> {
-    let sequence = Sequence::open(&args.dataset)
-        .with_context(|| format!("opening {}", args.dataset.display()))?;
+fn read_sequence(args: &BenchArgs) -> Result<(Sequence, Vec<FrameInput>)> {
+    let opening = || format!("opening {}", args.dataset.display());
+    let mut source = DatasetSource::open(&args.dataset).with_context(opening)?;
+    let sequence = source.sequence().with_context(opening)?;
     if sequence.frames.is_empty() {
         bail!("{} holds no frames", args.dataset.display());
+    }
+    if sequence.kind == DatasetKind::RealSenseBag {
+        for warning in &sequence.warnings {
+            eprintln!("warning: {warning}");
+        }
+        let frames = sequence
+            .frames
+            .iter()
+            .map(|entry| source.read_raw(entry).map(FrameInput::Raw))
+            .collect::<Result<Vec<_>, _>>()?;
+        return Ok((sequence, frames));
     }
     if sequence.frames[0].confidence.is_some() || sequence.is_depth_only() {
         bail!(
@@ -204,23 +236,24 @@ fn read_sequence(args: &BenchArgs) -> Result<(Sequence, Vec<PngPair>)> {
             std::fs::read(&path).with_context(|| format!("reading {}", path.display()))
         };
         let colour = entry.colour.as_deref().unwrap_or_default();
-        bytes.push((read(colour)?, read(&entry.depth)?));
+        bytes.push(FrameInput::Png(read(colour)?, read(&entry.depth)?));
     }
     Ok((sequence, bytes))
 }
 
 /// The configuration for the command line's settings, at the first frame's
 /// image size.
-fn bench_config(args: &BenchArgs, sequence: &Sequence, bytes: &[PngPair]) -> Result<SlamConfig> {
+fn bench_config(args: &BenchArgs, sequence: &Sequence, bytes: &[FrameInput]) -> Result<SlamConfig> {
     let mut config = config_for(sequence, &args.camera, &args.tracking)?;
-    let (colour, depth) = &bytes[0];
-    let first = surfel_slam::RgbdFrame::from_png_bytes(colour, depth, &config.depth)
-        .context("decoding the first frame")?;
-    config.intrinsics = at_frame_size(
-        &config.intrinsics,
-        (first.width, first.height),
-        &args.camera,
-    );
+    let size = match &bytes[0] {
+        FrameInput::Png(colour, depth) => {
+            let first = surfel_slam::RgbdFrame::from_png_bytes(colour, depth, &config.depth)
+                .context("decoding the first frame")?;
+            (first.width, first.height)
+        }
+        FrameInput::Raw(f) => (f.width, f.height),
+    };
+    config.intrinsics = at_frame_size(&config.intrinsics, size, &args.camera);
     Ok(config)
 }
 
@@ -247,7 +280,7 @@ struct Recording {
 fn record(
     slam: &mut Pipeline,
     config: &SlamConfig,
-    (frames, sequence): (&[PngPair], &Sequence),
+    (frames, sequence): (&[FrameInput], &Sequence),
     total: usize,
 ) -> Result<Recording> {
     let mut recording = Recording {

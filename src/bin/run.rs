@@ -37,8 +37,8 @@ const EXIT_FRAMES_SKIPPED: u8 = 3;
 
 #[derive(Args)]
 pub struct RunArgs {
-    /// Dataset folder, or archive (.zip, .tar, .tar.gz / .tgz) read in place;
-    /// layout detected automatically.
+    /// Dataset folder, archive (.zip, .tar, .tar.gz / .tgz) read in place,
+    /// or RealSense recording (.bag); layout detected automatically.
     pub(crate) dataset: PathBuf,
     /// Write the estimated trajectory here (TUM format, world_from_camera).
     #[arg(long)]
@@ -311,8 +311,16 @@ fn check_settings(
     slam: &mut Pipeline,
 ) {
     let chosen = args.camera.preset.unwrap_or(sequence.preset);
-    slam.check_layout(sequence.preset, chosen);
-    if let Ok(depth_png) = source.read(&first.depth) {
+    if sequence.depth_scale.is_some() {
+        slam.check_recorded_layout(sequence.preset, chosen);
+    } else {
+        slam.check_layout(sequence.preset, chosen);
+    }
+    if let DatasetSource::Bag { .. } = source {
+        if let Ok(raw) = source.read_raw(first) {
+            slam.check_depth_raw(&raw.depth);
+        }
+    } else if let Ok(depth_png) = source.read(&first.depth) {
         slam.check_depth_png(&depth_png);
     }
     for warning in slam.settings_warnings() {

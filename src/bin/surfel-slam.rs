@@ -524,7 +524,8 @@ pub(crate) fn config_for(
     k.cx = o.cx.unwrap_or(k.cx);
     k.cy = o.cy.unwrap_or(k.cy);
     let d = &mut config.depth;
-    d.scale = o.depth_scale.unwrap_or(d.scale);
+    // The recording's own depth units (a .bag's), whatever the preset.
+    d.scale = o.depth_scale.or(sequence.depth_scale).unwrap_or(d.scale);
     d.min_m = o.depth_min.unwrap_or(d.min_m);
     d.max_m = o.depth_max.unwrap_or(d.max_m);
     tracking.apply(&mut config);

@@ -1,6 +1,7 @@
 //! RGB-D dataset loaders (TUM RGB-D, ICL-NUIM, Microsoft 7-Scenes, Intel
 //! RealSense as Open3D's recorder writes it, iPhone LiDAR as the Stray
-//! Scanner app exports it) and the trajectory files (the surfel map's PLY file is in [`crate::mesh::surfel_ply`]).
+//! Scanner app exports it, a RealSense `.bag` recording: [`rosbag`]) and the
+//! trajectory files (the surfel map's PLY file is in [`crate::mesh::surfel_ply`]).
 //!
 //! Parsing works in two pure steps on strings so that the browser (which only
 //! has a list of file names and can read text files on request) and the native
@@ -26,9 +27,11 @@ pub mod archive;
 mod decode;
 pub mod icl_nuim;
 mod lines;
+pub mod mkv;
 mod open;
 pub mod realsense;
 pub mod reference;
+pub mod rosbag;
 pub mod seven_scenes;
 pub mod stray;
 pub mod trajectory;
@@ -155,6 +158,16 @@ pub enum DatasetError {
         /// What is wrong with it.
         reason: String,
     },
+    /// A RealSense `.bag` (or one of its frames) could not be read, or
+    /// (in [`Sequence::warnings`]) was read with a warning.
+    #[error("{path}: {source}")]
+    Rosbag {
+        /// The bag file.
+        path: String,
+        /// What is wrong with it.
+        #[source]
+        source: rosbag::RosbagError,
+    },
     /// An image of a frame could not be decoded.
     #[error("{path}: {source}")]
     Frame {
@@ -202,11 +215,15 @@ pub enum DatasetKind {
     /// `odometry.csv`, optional `rgb/NNNNNN.jpg` (frames extracted from
     /// `rgb.mp4`).
     StrayScanner,
+    /// Intel RealSense as librealsense records it (RealSense Viewer,
+    /// `rs-record`, up to 2.57): one ROS1 `.bag` file ([`rosbag`]),
+    /// recognised by its first bytes.
+    RealSenseBag,
 }
 
 impl DatasetKind {
     /// Short human-readable name (`TUM RGB-D`, `ICL-NUIM`, `7-Scenes`,
-    /// `RealSense`, `Stray Scanner`).
+    /// `RealSense`, `Stray Scanner`, `RealSense .bag`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
@@ -215,6 +232,7 @@ impl DatasetKind {
             Self::SevenScenes => "7-Scenes",
             Self::RealSense => "RealSense",
             Self::StrayScanner => "Stray Scanner",
+            Self::RealSenseBag => "RealSense .bag",
         }
     }
 }
@@ -291,6 +309,10 @@ pub struct Sequence {
     /// depth's 256x192), pixels; they win over [`Self::preset`]'s. `None`
     /// for layouts whose camera is a preset.
     pub intrinsics: Option<Intrinsics>,
+    /// Raw depth units per metre that the recording itself gives (a
+    /// RealSense `.bag`'s depth units option: 1 / units); it wins over
+    /// [`Self::preset`]'s. `None` for the layouts that say nothing.
+    pub depth_scale: Option<f32>,
     /// Frames, in time order.
     pub frames: Vec<FrameEntry>,
     /// Ground truth `(timestamp, world_from_camera)`, sorted by timestamp,
@@ -545,6 +567,13 @@ pub fn parse_sequence(
             imu = parsed.imu;
             (CameraPreset::StrayLidar, parsed.frames, Vec::new())
         }
+        DatasetKind::RealSenseBag => {
+            return Err(DatasetError::UnknownLayout {
+                hint: "a RealSense .bag is one file, read by its bytes (DatasetSource::open), \
+                       not a listing of files"
+                    .to_owned(),
+            })
+        }
     };
     if frames.is_empty() {
         return Err(DatasetError::NoFrames);
@@ -563,6 +592,7 @@ pub fn parse_sequence(
         kind: layout.kind,
         preset,
         intrinsics,
+        depth_scale: None,
         frames,
         ground_truth,
         odometry,

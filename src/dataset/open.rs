@@ -3,10 +3,12 @@
 
 use std::collections::HashMap;
 use std::fs::File;
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use super::archive::{self, ArchiveReader};
-use super::decode::{decode_frame_bytes, FrameBytes};
+use super::decode::{decode_frame_bytes, FrameBytes, DEPTH_ONLY_GREY};
+use super::rosbag::{self, ImuSample, RawFrame, RealSenseBag};
 use super::{detect_layout, parse_sequence, DatasetError, DatasetKind, FrameEntry, Sequence};
 use crate::frame::{DepthSettings, RgbdFrame};
 
@@ -70,8 +72,8 @@ fn read_bytes(root: &Path, name: &str) -> Result<Vec<u8>, DatasetError> {
 }
 
 impl Sequence {
-    /// Opens a dataset natively, a folder or an archive file (`.zip`, `.tar`,
-    /// `.tar.gz`/`.tgz`; see [`DatasetSource`]): lists it, detects the layout,
+    /// Opens a dataset natively, a folder, an archive file (`.zip`, `.tar`,
+    /// `.tar.gz`/`.tgz`) or a RealSense `.bag` (see [`DatasetSource`]): lists it, detects the layout,
     /// reads the index files (7-Scenes: the per-frame pose files). Frame paths
     /// are relative to `path`; for a folder pass `path` as `root` to
     /// [`read_frame`], for an archive read frames through a [`DatasetSource`].
@@ -80,8 +82,9 @@ impl Sequence {
     }
 }
 
-/// Where a dataset's files are read from natively: a folder, or an archive
-/// file read in place (never unpacked to disk).
+/// Where a dataset's files are read from natively: a folder, an archive
+/// file read in place (never unpacked to disk), or a RealSense `.bag`
+/// (frames decoded from its messages, one chunk in memory at a time).
 pub enum DatasetSource {
     /// A dataset folder.
     Folder(PathBuf),
@@ -92,11 +95,19 @@ pub enum DatasetSource {
         /// Its contents, read on demand.
         reader: Box<ArchiveReader<File>>,
     },
+    /// A RealSense recording (ROS1 bag), scanned once when opened.
+    Bag {
+        /// The bag file.
+        path: PathBuf,
+        /// The recording, read on demand.
+        bag: Box<RealSenseBag<BufReader<File>>>,
+    },
 }
 
 impl DatasetSource {
-    /// A folder, or a file read as an archive (its format sniffed from its
-    /// first bytes; errors name the file).
+    /// A folder, or a file read as a RealSense `.bag` or an archive (its
+    /// format sniffed from its first bytes, whatever its extension; errors
+    /// name the file).
     pub fn open(path: &Path) -> Result<Self, DatasetError> {
         let io = |e: std::io::Error| DatasetError::Io {
             path: path.display().to_string(),
@@ -104,6 +115,24 @@ impl DatasetSource {
         };
         if std::fs::metadata(path).map_err(io)?.is_dir() {
             return Ok(Self::Folder(path.to_path_buf()));
+        }
+        let mut head = Vec::with_capacity(16);
+        File::open(path)
+            .and_then(|f| f.take(16).read_to_end(&mut head))
+            .map_err(io)?;
+        if rosbag::is_rosbag(&head) {
+            let file = File::open(path).map_err(io)?;
+            let bag =
+                RealSenseBag::open(BufReader::with_capacity(1 << 20, file)).map_err(|source| {
+                    DatasetError::Rosbag {
+                        path: path.display().to_string(),
+                        source,
+                    }
+                })?;
+            return Ok(Self::Bag {
+                path: path.to_path_buf(),
+                bag: Box::new(bag),
+            });
         }
         let file = File::open(path).map_err(io)?;
         let reader = ArchiveReader::new(file, &path.display().to_string())?;
@@ -119,6 +148,7 @@ impl DatasetSource {
         match self {
             Self::Folder(dir) => list_files(dir),
             Self::Archive { reader, .. } => Ok(reader.names().to_vec()),
+            Self::Bag { path, .. } => Ok(vec![path.display().to_string()]),
         }
     }
 
@@ -127,6 +157,10 @@ impl DatasetSource {
         match self {
             Self::Folder(dir) => read_bytes(dir, name),
             Self::Archive { reader, .. } => reader.read(name),
+            Self::Bag { path, .. } => Err(DatasetError::MissingFile {
+                path: name.to_owned(),
+                listed_in: format!("{} (a .bag holds messages, not files)", path.display()),
+            }),
         }
     }
 
@@ -142,6 +176,10 @@ impl DatasetSource {
                     .map(|n| n.to_string_lossy().into_owned())
                     .unwrap_or_default()
             }
+            Self::Bag { path, .. } => path
+                .file_stem()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
             Self::Archive { path, .. } => {
                 let name = path
                     .file_name()
@@ -156,6 +194,12 @@ impl DatasetSource {
     /// cannot be read (a 7-Scenes pose file) becomes a warning, not an error,
     /// beside the parser's own ([`Sequence::warnings`]).
     pub fn sequence(&mut self) -> Result<Sequence, DatasetError> {
+        if let Self::Bag { path, bag } = self {
+            return Ok(rosbag::sequence_of(
+                bag.recording(),
+                &path.display().to_string(),
+            ));
+        }
         let names = self.names()?;
         let layout = detect_layout(&names)?;
         let optional = layout.kind == DatasetKind::SevenScenes;
@@ -184,7 +228,53 @@ impl DatasetSource {
         entry: &FrameEntry,
         settings: &DepthSettings,
     ) -> Result<RgbdFrame, DatasetError> {
+        if let Self::Bag { .. } = self {
+            let raw = self.read_raw(entry)?;
+            let grey;
+            let rgb = if raw.rgb.is_empty() {
+                grey = vec![DEPTH_ONLY_GREY; 3 * raw.width * raw.height];
+                &grey
+            } else {
+                &raw.rgb
+            };
+            return RgbdFrame::from_raw(raw.width, raw.height, rgb, &raw.depth, settings).map_err(
+                |source| DatasetError::Frame {
+                    path: entry.depth.clone(),
+                    source,
+                },
+            );
+        }
         read_entry(entry, settings, |name| self.read(name))
+    }
+
+    /// A `.bag` frame's raw depth (the recording's units) and its colour
+    /// registered to it (empty without [`FrameEntry::colour`]); for the
+    /// other sources, [`DatasetError::MissingFile`] (their frames are files:
+    /// [`Self::read`]).
+    pub fn read_raw(&mut self, entry: &FrameEntry) -> Result<RawFrame, DatasetError> {
+        match self {
+            Self::Bag { path, bag } => {
+                bag.read_frame(entry.index, entry.colour.is_some())
+                    .map_err(|source| DatasetError::Rosbag {
+                        path: format!("{}, {}", path.display(), entry.depth),
+                        source,
+                    })
+            }
+            _ => Err(DatasetError::MissingFile {
+                path: entry.depth.clone(),
+                listed_in: "a folder or archive (its frames are image files)".to_owned(),
+            }),
+        }
+    }
+
+    /// The recording's IMU samples, in time order (a RealSense `.bag` with
+    /// motion streams); empty for the other sources.
+    #[must_use]
+    pub fn imu(&self) -> &[ImuSample] {
+        match self {
+            Self::Bag { bag, .. } => &bag.recording().imu,
+            _ => &[],
+        }
     }
 }
 

@@ -304,6 +304,32 @@ impl Pipeline {
         found
     }
 
+    /// [`Self::check_layout`] for a recording that gives its own depth
+    /// units (a RealSense `.bag`): its depth scale is not compared with the
+    /// preset's.
+    pub fn check_recorded_layout(
+        &mut self,
+        detected: CameraPreset,
+        chosen: CameraPreset,
+    ) -> Vec<SettingsWarning> {
+        let found: Vec<SettingsWarning> = layout_warnings(detected, chosen, &self.config)
+            .into_iter()
+            .filter(|w| {
+                !matches!(
+                    w,
+                    SettingsWarning::Value {
+                        setting: "depth scale",
+                        ..
+                    }
+                )
+            })
+            .collect();
+        for w in &found {
+            self.settings_check.add(*w, false);
+        }
+        found
+    }
+
     /// Checks the depth scale on raw depth values (the first image given
     /// only); a warning found is kept, returned, and reported with the next
     /// frame.

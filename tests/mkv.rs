@@ -1,0 +1,127 @@
+//! Azure Kinect `.mkv` structure: the shared sample's tracks, attachment
+//! and blocks (values from an independent EBML walk of the file in
+//! Python), a cut copy keeping the clusters before the cut with one
+//! warning, hostile bytes giving errors, never a panic.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
+
+use std::io::Cursor;
+use std::path::PathBuf;
+
+use surfel_slam::dataset::mkv::{Block, MkvError, MkvFile};
+
+/// A track as compared: number, name, codec, FOURCC, size.
+type TrackRow<'a> = (u64, &'a str, &'a str, Option<&'a str>, Option<(u64, u64)>);
+
+const SAMPLE: &str = "recordings/azure_kinect_nfov_720p.mkv";
+
+fn sample() -> Option<Vec<u8>> {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(SAMPLE);
+    if path.is_file() {
+        Some(std::fs::read(path).unwrap())
+    } else if std::env::var("CI").is_ok_and(|v| v == "true") {
+        panic!("{} not found and CI=true", path.display());
+    } else {
+        eprintln!("skipping: {} not found", path.display());
+        None
+    }
+}
+
+#[test]
+fn the_sample_lists_its_tracks_attachment_and_blocks() {
+    let Some(bytes) = sample() else {
+        return;
+    };
+    let mkv = MkvFile::read(Cursor::new(bytes.clone())).expect("reads");
+    assert_eq!(mkv.timecode_scale_ns, 1000);
+    let tracks: Vec<TrackRow<'_>> = mkv
+        .tracks
+        .iter()
+        .map(|t| {
+            (
+                t.number,
+                t.name.as_str(),
+                t.codec.as_str(),
+                t.fourcc.as_deref(),
+                t.size,
+            )
+        })
+        .collect();
+    assert_eq!(
+        tracks,
+        vec![
+            (
+                1,
+                "COLOR",
+                "V_MS/VFW/FOURCC",
+                Some("MJPG"),
+                Some((1280, 720))
+            ),
+            (
+                2,
+                "DEPTH",
+                "V_MS/VFW/FOURCC",
+                Some("b16g"),
+                Some((640, 576))
+            ),
+            (3, "IR", "V_MS/VFW/FOURCC", Some("b16g"), Some((640, 576))),
+            (4, "IMU", "S_K4A/IMU", None, None),
+        ]
+    );
+    assert_eq!(mkv.attachments.len(), 1);
+    assert_eq!(mkv.attachments[0].0, "calibration.json");
+    assert!(mkv.attachments[0]
+        .1
+        .starts_with(b"{\"CalibrationInformation\""));
+    let block = |track: u64| mkv.blocks[&track].as_slice();
+    let at = |time_ns, pos, len| Block { time_ns, pos, len };
+    assert_eq!(block(4), [at(0, 7503, 40)]);
+    assert_eq!(block(1), [at(463_945_000, 7572, 217_095)]);
+    assert_eq!(block(2), [at(463_945_000, 224_675, 737_280)]);
+    assert_eq!(block(3), [at(463_945_000, 961_963, 737_280)]);
+    assert_eq!(
+        &bytes[7572..7574],
+        [0xff, 0xd8],
+        "the colour block is a JPEG"
+    );
+    assert_eq!(2 * 640 * 576, 737_280, "the depth block is 16-bit 640x576");
+    assert!(mkv.cut_off.is_none());
+}
+
+#[test]
+fn a_cut_file_keeps_the_clusters_before_the_cut() {
+    let Some(bytes) = sample() else {
+        return;
+    };
+    // Cut in the IR block of the second cluster: that capture is dropped whole.
+    let mkv = MkvFile::read(Cursor::new(bytes[..1_000_000].to_vec())).expect("reads");
+    assert_eq!(mkv.blocks.keys().copied().collect::<Vec<_>>(), vec![4]);
+    assert!(
+        mkv.cut_off
+            .as_deref()
+            .is_some_and(|w| w.contains("cut short")),
+        "{:?}",
+        mkv.cut_off
+    );
+    assert_eq!(mkv.tracks.len(), 4);
+    // Every cut, and bytes flipped in the headers: errors, never a panic.
+    for cut in (0..bytes.len()).step_by(4999) {
+        let _ = MkvFile::read(Cursor::new(bytes[..cut].to_vec()));
+    }
+    let head = bytes[..8000].to_vec();
+    let mut x = 0x9e37_79b9_u32;
+    for _ in 0..3000 {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        let mut bad = head.clone();
+        let at = x as usize % bad.len();
+        bad[at] = (x >> 8) as u8;
+        let _ = MkvFile::read(Cursor::new(bad));
+    }
+    assert_eq!(
+        MkvFile::read(Cursor::new(b"#ROSBAG V2.0\n".to_vec())),
+        Err(MkvError::NotMatroska)
+    );
+}
