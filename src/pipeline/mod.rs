@@ -47,7 +47,7 @@ use crate::track::verify::TrackingChecks;
 use crate::track::{TrackerConfig, TrackerMode, TrackerWorkspace};
 use config::check_timestamp;
 use glam::DAffine3;
-use recovery::{colour_tracker, recovery_tracker, Tracked};
+use recovery::{recovery_tracker, Tracked};
 
 /// Dense RGB-D SLAM state: the map, the trajectory and reusable buffers.
 #[derive(Debug)]
@@ -111,8 +111,6 @@ pub struct Pipeline {
     frame_index: u32,
     counts: VerdictCounts,
     recovery: TrackerConfig,
-    /// The normal tracker in joint mode, for what geometry leaves free.
-    colour: TrackerConfig,
     /// Features of the last fused frame and of the current one.
     sparse: SparseEstimator,
     /// `previous_from_current` of the last two fused frames in a row.
@@ -164,7 +162,6 @@ impl Pipeline {
             scratch: DecodeScratch::default(),
             settings_check: SettingsCheck::default(),
             recovery: recovery_tracker(&config.tracker),
-            colour: colour_tracker(&config.tracker),
             sparse: SparseEstimator::new(config.tracker.verify.features)
                 .map_err(|e| PipelineError::InvalidConfig(e.to_string()))?,
             velocity: None,
@@ -440,7 +437,6 @@ impl Pipeline {
         self.config.tracker.noise = tracker;
         self.config.fusion.noise = fusion;
         self.recovery = recovery_tracker(&self.config.tracker);
-        self.colour = colour_tracker(&self.config.tracker);
     }
 
     /// Stage `preprocess`: halves the frame when asked, then builds the

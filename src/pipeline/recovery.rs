@@ -10,7 +10,7 @@ use crate::se3;
 use crate::track::verify::{free_space_violation, TrackingChecks, VerifyConfig};
 use crate::track::{
     track, track_with_prior, FreeDirections, LostReason, MotionPrior, TrackResult, TrackerConfig,
-    TrackerMode, TrackerWorkspace, WEAK_CONDITIONING,
+    TrackerWorkspace,
 };
 use glam::DAffine3;
 
@@ -115,16 +115,6 @@ fn prior_misses(poses: &[(f64, DAffine3)]) -> impl Iterator<Item = se3::Twist> +
     })
 }
 
-/// The joint tracker that measures, with colour, what a frame's geometry
-/// leaves free ([`TrackerConfig::colour_where_free`]): the normal tracker
-/// in joint mode.
-pub(super) fn colour_tracker(normal: &TrackerConfig) -> TrackerConfig {
-    TrackerConfig {
-        mode: TrackerMode::Joint,
-        ..normal.clone()
-    }
-}
-
 /// Re-acquisition search: gates wide enough to pull in a pose several
 /// frames' motion away (dropped frames, a fast turn), more iterations at the
 /// coarse levels where the wide gate is cheap. Its result is then checked by
@@ -198,7 +188,6 @@ impl Pipeline {
             prediction: &self.prediction,
             normal,
             recovery: &self.recovery,
-            colour: &self.colour,
             verify,
             previous: *previous,
             guess,
@@ -246,8 +235,6 @@ struct Judge<'a> {
     normal: &'a TrackerConfig,
     /// The wide re-acquisition search ([`recovery_tracker`]).
     recovery: &'a TrackerConfig,
-    /// The normal tracker in joint mode ([`colour_tracker`]).
-    colour: &'a TrackerConfig,
     verify: VerifyConfig,
     /// The last good pose, `world_from_camera`.
     previous: DAffine3,
@@ -365,18 +352,7 @@ impl Judge<'_> {
         workspace: &mut TrackerWorkspace,
         checks: &mut TrackingChecks,
     ) -> FirstAttempt {
-        let mut result = self.track(&self.guess, self.normal, workspace);
-        if result.held_directions > 0
-            && self.normal.mode == TrackerMode::Icp
-            && self.normal.colour_where_free
-        {
-            let joint = self.track(&self.guess, self.colour, workspace);
-            // Colour counts where the joint system pins every direction
-            // as well as a tracked frame's geometry does.
-            if self.passes(&joint) && joint.conditioning >= WEAK_CONDITIONING {
-                result = joint;
-            }
-        }
+        let result = self.track(&self.guess, self.normal, workspace);
         checks.first_dense = Some(result.world_from_camera);
         let ok = self.passes(&result);
         checks.free_space_first = if ok {

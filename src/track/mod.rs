@@ -173,18 +173,6 @@ pub struct TrackerConfig {
     /// (see [`motion_prior`]; used by the pipeline between consecutive frames).
     #[serde(default)]
     pub motion_prior: MotionPriorConfig,
-    /// ICP mode: a frame whose geometry leaves directions free is tracked
-    /// again with the photometric term (joint mode), which pins them where
-    /// the view has texture (a ceiling's light panel and vents, a poster
-    /// on a wall); its result replaces the held one when the joint system
-    /// pins all six directions. Keeps each placed frame's photometric
-    /// memory in ICP mode too.
-    #[serde(default = "colour_where_free_default")]
-    pub colour_where_free: bool,
-}
-
-fn colour_where_free_default() -> bool {
-    true
 }
 
 impl Default for TrackerConfig {
@@ -213,7 +201,6 @@ impl Default for TrackerConfig {
             max_rotation_deg: 30.0,
             verify: VerifyConfig::default(),
             motion_prior: MotionPriorConfig::default(),
-            colour_where_free: colour_where_free_default(),
         }
     }
 }
@@ -337,7 +324,7 @@ impl TrackerWorkspace {
         world_from_camera: &DAffine3,
         config: &TrackerConfig,
     ) {
-        if config.mode != TrackerMode::Icp || config.colour_where_free {
+        if config.mode != TrackerMode::Icp {
             self.rgb
                 .remember_frame(pyramid, world_from_camera, &config.photometric);
         }
