@@ -60,7 +60,7 @@ struct Run {
     held: usize,
 }
 
-fn run(config: SlamConfig, colour: bool) -> Run {
+fn run(config: SlamConfig) -> Run {
     let k = config.intrinsics;
     let scene = Scene::room();
     // An iPhone's LiDAR: 0.2 cm at 1 m and 1.8 cm at 3 m, growing with the square of the
@@ -87,9 +87,7 @@ fn run(config: SlamConfig, colour: bool) -> Run {
         let mut frame = synthetic::render(&scene, &k, &pose, &noise, i as u64)
             .to_frame(&config.depth)
             .unwrap();
-        if !colour {
-            frame.rgb.fill(128);
-        }
+        frame.rgb.fill(128);
         let report = slam.push_frame(&frame, t).unwrap();
         let placed = slam.trajectory().last().unwrap().1;
         let true_pose = origin * pose;
@@ -134,7 +132,7 @@ fn phone_config() -> SlamConfig {
 
 #[test]
 fn a_phone_walking_up_to_a_bare_wall_moves_as_a_hand_can() {
-    let with = run(phone_config(), false);
+    let with = run(phone_config());
     eprintln!(
         "motion prior: dishonest {:?}, fastest {:.2} m/s, ATE {:.2} cm, lost {}, held {}",
         with.dishonest,
@@ -145,7 +143,7 @@ fn a_phone_walking_up_to_a_bare_wall_moves_as_a_hand_can() {
     );
     let mut off = phone_config();
     off.tracker.motion_prior.enabled = false;
-    let without = run(off, false);
+    let without = run(off);
     eprintln!(
         "no prior:     dishonest {:?}, fastest {:.2} m/s, ATE {:.2} cm, lost {}, held {}",
         without.dishonest,
@@ -166,33 +164,4 @@ fn a_phone_walking_up_to_a_bare_wall_moves_as_a_hand_can() {
         with.ate_m * 100.0,
         without.ate_m * 100.0
     );
-}
-
-/// The same walk with colour (the wall is textured): the photometric term
-/// measures what the wall's geometry leaves free, so the slide along it is
-/// tracked instead of held.
-#[test]
-fn colour_measures_the_slide_along_a_textured_wall() {
-    let with = run(phone_config(), true);
-    eprintln!(
-        "colour where free: dishonest {:?}, fastest {:.2} m/s, ATE {:.2} cm, lost {}, held {}",
-        with.dishonest,
-        with.fastest_mps,
-        with.ate_m * 100.0,
-        with.lost,
-        with.held
-    );
-    let mut off = phone_config();
-    off.tracker.colour_where_free = false;
-    let without = run(off, true);
-    eprintln!(
-        "geometry alone:    dishonest {:?}, fastest {:.2} m/s, ATE {:.2} cm, lost {}, held {}",
-        without.dishonest,
-        without.fastest_mps,
-        without.ate_m * 100.0,
-        without.lost,
-        without.held
-    );
-    assert!(with.dishonest.is_empty(), "{:?}", with.dishonest);
-    assert!(with.ate_m < 0.5 * without.ate_m);
 }
