@@ -7,7 +7,7 @@
 use std::io::Cursor;
 use std::path::PathBuf;
 
-use surfel_slam::dataset::mkv::{Block, MkvError, MkvFile};
+use surfel_slam::dataset::mkv::{camera, Block, MkvError, MkvFile, Purpose};
 
 /// A track as compared: number, name, codec, FOURCC, size.
 type TrackRow<'a> = (u64, &'a str, &'a str, Option<&'a str>, Option<(u64, u64)>);
@@ -124,4 +124,56 @@ fn a_cut_file_keeps_the_clusters_before_the_cut() {
         MkvFile::read(Cursor::new(b"#ROSBAG V2.0\n".to_vec())),
         Err(MkvError::NotMatroska)
     );
+}
+
+#[test]
+fn the_sample_calibration_in_its_modes() {
+    let Some(bytes) = sample() else {
+        return;
+    };
+    let mkv = MkvFile::read(Cursor::new(bytes)).expect("reads");
+    let json = &mkv.attachments[0].1;
+    // As the SDK's mode_specific_calibration.c computes them from the
+    // file's normalised values (Python, in f64): NFOV unbinned 640x576 is
+    // the 1024x1024 sensor cropped at (192, 180); 720p is the 4096x3072
+    // sensor binned to 1280x960, cropped at (0, 120).
+    let d = camera(json, Purpose::Depth, 640, 576).expect("depth");
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-9;
+    assert!(
+        close(d.fx, 504.607_635_498_046_9) && close(d.fy, 504.732_513_427_734_4),
+        "{d:?}"
+    );
+    assert!(
+        close(d.cx, 332.781_066_894_531_25) && close(d.cy, 348.829_711_914_062_5),
+        "{d:?}"
+    );
+    assert!(close(d.distortion[0], 0.547_939_777_374_267_6), "k1");
+    assert_eq!(d.from_depth, glam::DAffine3::IDENTITY);
+    let c = camera(json, Purpose::Colour, 1280, 720).expect("colour");
+    assert!(
+        close(c.fx, 611.795_349_121_093_8) && close(c.fy, 611.926_975_250_244_1),
+        "{c:?}"
+    );
+    assert!(
+        close(c.cx, 639.304_344_177_246_1) && close(c.cy, 365.852_901_458_740_23),
+        "{c:?}"
+    );
+    let t = c.from_depth.translation;
+    assert!(
+        close(t.x, -0.032_083_429_396_152_496) && close(t.z, 0.003_883_692_668_750_882),
+        "{t}"
+    );
+    // Row-major in the file: its second entry is row 0, column 1.
+    assert!(close(
+        c.from_depth.matrix3.y_axis.x,
+        0.001_181_757_659_651_339
+    ));
+    assert!(matches!(
+        camera(json, Purpose::Depth, 640, 480),
+        Err(MkvError::Calibration(_))
+    ));
+    assert!(matches!(
+        camera(b"{", Purpose::Depth, 640, 576),
+        Err(MkvError::Calibration(_))
+    ));
 }

@@ -5,12 +5,16 @@
 //!
 //! - `ebml.rs`: EBML elements, bounded reads.
 //! - `structure.rs`: [`MkvFile`], one pass over the element headers.
+//! - `calibration.rs`: the cameras of `calibration.json` in the recorded
+//!   mode ([`AzureCamera`]).
 
+mod calibration;
 mod ebml;
 mod structure;
 
 use thiserror::Error;
 
+pub use calibration::{camera, AzureCamera, Purpose};
 pub use structure::{Block, MkvFile, Track};
 
 /// Why a Matroska file could not be read.
@@ -28,6 +32,10 @@ pub enum MkvError {
         /// Where the element starts, bytes.
         offset: u64,
     },
+    /// The calibration attachment is missing something or does not fit
+    /// the recording's mode.
+    #[error("calibration.json: {0}")]
+    Calibration(String),
     /// An element is not what the format says.
     #[error("corrupt element at byte {offset}: {reason}")]
     Corrupt {
