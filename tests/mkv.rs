@@ -177,3 +177,85 @@ fn the_sample_calibration_in_its_modes() {
         Err(MkvError::Calibration(_))
     ));
 }
+
+#[test]
+fn the_sample_plays_its_frame_undistorted_and_coloured() {
+    let Some(bytes) = sample() else {
+        return;
+    };
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(SAMPLE);
+    let mut source = surfel_slam::dataset::DatasetSource::open(&path).expect("opens");
+    let seq = source.sequence().expect("a sequence");
+    assert_eq!(seq.kind, surfel_slam::dataset::DatasetKind::AzureKinect);
+    assert_eq!(seq.depth_scale, Some(1000.0));
+    assert_eq!(seq.frames.len(), 1);
+    assert!(
+        seq.frames[0].colour.is_some(),
+        "the colour of the same capture"
+    );
+    assert!((seq.frames[0].timestamp - 0.463_945).abs() < 1e-9);
+    let k = seq.intrinsics.expect("the depth mode's");
+    assert_eq!((k.width, k.height), (640, 576));
+    let raw = source.read_raw(&seq.frames[0]).expect("reads");
+    // At the principal point (332.8, 348.8) the lens does not move a
+    // pixel: (333, 349) keeps its recorded value, 1883 mm big-endian as
+    // Python reads the block.
+    let recorded = |u: usize, v: usize| {
+        let at = 224_675 + 2 * (v * 640 + u);
+        u16::from_be_bytes([bytes[at], bytes[at + 1]])
+    };
+    assert_eq!(raw.depth[349 * 640 + 333], recorded(333, 349));
+    assert_eq!(recorded(333, 349), 1883);
+    // Away from it, the undistorted image differs from the recorded one.
+    let moved = (0..640 * 576)
+        .filter(|&i| raw.depth[i] != recorded(i % 640, i / 640))
+        .count();
+    assert!(moved > 640 * 576 / 10, "{moved} pixels moved");
+    // Colour registered: most measured pixels see the colour camera.
+    let measured: Vec<usize> = (0..640 * 576).filter(|&i| raw.depth[i] > 0).collect();
+    let grey = measured
+        .iter()
+        .filter(|&&i| raw.rgb[3 * i..3 * i + 3] == [128, 128, 128])
+        .count();
+    assert!(
+        grey * 10 < measured.len(),
+        "{grey} of {} grey",
+        measured.len()
+    );
+    // The command line plays it.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_surfel-slam"))
+        .args(["run", path.to_str().unwrap(), "--quiet"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("1 frames"));
+}
+
+#[test]
+fn an_mkv_without_depth_is_refused_naming_the_file() {
+    let Some(bytes) = sample() else {
+        return;
+    };
+    // The DEPTH track renamed: no depth track left.
+    let mut bad = bytes;
+    let at = bad.windows(5).position(|w| w == b"DEPTH").unwrap();
+    bad[at..at + 5].copy_from_slice(b"XXXXX");
+    let dir = std::env::temp_dir().join(format!("surfel-slam-mkv-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("no-depth.mkv");
+    std::fs::write(&path, bad).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_surfel-slam"))
+        .args(["run", path.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("no-depth.mkv") && stderr.contains("no depth track"),
+        "{stderr}"
+    );
+}

@@ -30,8 +30,34 @@ pub struct AzureCamera {
     /// codx, cody, p2, p1]` (normalised image coordinates), as the file
     /// gives them.
     pub distortion: [f64; 10],
+    /// Largest radius (normalised image coordinates) the distortion holds for.
+    pub metric_radius: f64,
     /// This camera from the depth camera (`p_camera = T * p_depth`), metres.
     pub from_depth: DAffine3,
+}
+
+impl AzureCamera {
+    /// The pixel where the camera sees point `p` (its frame, metres), as
+    /// the SDK projects (`transformation_project_internal`, Brown-Conrady):
+    /// `None` behind the camera or past the metric radius.
+    #[must_use]
+    pub fn project(&self, p: DVec3) -> Option<(f64, f64)> {
+        if p.z <= 0.0 {
+            return None;
+        }
+        let [k1, k2, k3, k4, k5, k6, codx, cody, p2, p1] = self.distortion;
+        let (xp, yp) = (p.x / p.z - codx, p.y / p.z - cody);
+        let rs = xp * xp + yp * yp;
+        if rs > self.metric_radius * self.metric_radius {
+            return None;
+        }
+        let a = 1.0 + k1 * rs + k2 * rs * rs + k3 * rs * rs * rs;
+        let b = 1.0 + k4 * rs + k5 * rs * rs + k6 * rs * rs * rs;
+        let d = if b == 0.0 { a } else { a / b };
+        let x = xp * d + (rs + 2.0 * xp * xp) * p2 + 2.0 * xp * yp * p1 + codx;
+        let y = yp * d + (rs + 2.0 * yp * yp) * p1 + 2.0 * xp * yp * p2 + cody;
+        Some((x * self.fx + self.cx, y * self.fy + self.cy))
+    }
 }
 
 /// Which camera of the calibration.
@@ -153,6 +179,11 @@ pub fn camera(
     let t = numbers(rt, "Translation", 3)?;
     // Row-major in the file.
     let rotation = DMat3::from_cols_array(&[r[0], r[3], r[6], r[1], r[4], r[7], r[2], r[5], r[8]]);
+    let metric_radius = cam
+        .get("MetricRadius")
+        .and_then(serde_json::Value::as_f64)
+        .filter(|r| r.is_finite() && *r > 0.0)
+        .unwrap_or(f64::INFINITY);
     let mut distortion = [0.0; 10];
     distortion.copy_from_slice(&p[4..14]);
     Ok(AzureCamera {
@@ -163,6 +194,7 @@ pub fn camera(
         width,
         height,
         distortion,
+        metric_radius,
         from_depth: DAffine3::from_mat3_translation(rotation, DVec3::new(t[0], t[1], t[2])),
     })
 }
