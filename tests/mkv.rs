@@ -7,7 +7,7 @@
 use std::io::Cursor;
 use std::path::PathBuf;
 
-use surfel_slam::dataset::mkv::{camera, Block, MkvError, MkvFile, Purpose};
+use surfel_slam::dataset::mkv::{camera, AzureRecording, Block, MkvError, MkvFile, Purpose};
 
 /// A track as compared: number, name, codec, FOURCC, size.
 type TrackRow<'a> = (u64, &'a str, &'a str, Option<&'a str>, Option<(u64, u64)>);
@@ -124,6 +124,30 @@ fn a_cut_file_keeps_the_clusters_before_the_cut() {
         MkvFile::read(Cursor::new(b"#ROSBAG V2.0\n".to_vec())),
         Err(MkvError::NotMatroska)
     );
+    // The same through the recording: opened and its frames read, or errors.
+    let mut x = 0x2545_f491_u32;
+    for i in 0..60 {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        let mut bad = bytes.clone();
+        if i % 3 == 0 {
+            bad.truncate(x as usize % bytes.len());
+        } else {
+            // In the headers and calibration, or in the blocks' heads.
+            let at = if i % 3 == 1 {
+                x as usize % 8000
+            } else {
+                7540 + x as usize % 40
+            };
+            bad[at] = (x >> 8) as u8;
+        }
+        if let Ok(mut rec) = AzureRecording::open(Cursor::new(bad)) {
+            for f in 0..rec.frames.len() {
+                let _ = rec.read_frame(f, true);
+            }
+        }
+    }
 }
 
 #[test]

@@ -213,9 +213,10 @@ fn pair(depth: &[Block], colour: &[Block]) -> Vec<MkvFrame> {
     depth.sort_by_key(|b| b.time_ns);
     let mut colour = colour.to_vec();
     colour.sort_by_key(|b| b.time_ns);
-    let mut steps: Vec<i64> = depth
+    // abs_diff: forged times must not overflow.
+    let mut steps: Vec<u64> = depth
         .windows(2)
-        .map(|w| w[1].time_ns - w[0].time_ns)
+        .map(|w| w[1].time_ns.abs_diff(w[0].time_ns))
         .collect();
     steps.sort_unstable();
     let period = steps
@@ -231,8 +232,8 @@ fn pair(depth: &[Block], colour: &[Block]) -> Vec<MkvFrame> {
                 .into_iter()
                 .flatten()
                 .filter_map(|j| colour.get(j))
-                .min_by_key(|c| (c.time_ns - d.time_ns).unsigned_abs())
-                .filter(|c| (c.time_ns - d.time_ns).unsigned_abs() * 2 <= period.unsigned_abs())
+                .min_by_key(|c| c.time_ns.abs_diff(d.time_ns))
+                .filter(|c| c.time_ns.abs_diff(d.time_ns) <= period / 2)
                 .copied();
             MkvFrame {
                 time_s: d.time_ns as f64 * 1e-9,
