@@ -210,7 +210,10 @@ fn read_sequence(args: &BenchArgs) -> Result<(Sequence, Vec<FrameInput>)> {
     if sequence.frames.is_empty() {
         bail!("{} holds no frames", args.dataset.display());
     }
-    if sequence.kind == DatasetKind::RealSenseBag {
+    if matches!(
+        sequence.kind,
+        DatasetKind::RealSenseBag | DatasetKind::AzureKinect
+    ) {
         for warning in &sequence.warnings {
             eprintln!("warning: {warning}");
         }

@@ -316,7 +316,7 @@ fn check_settings(
     } else {
         slam.check_layout(sequence.preset, chosen);
     }
-    if let DatasetSource::Bag { .. } = source {
+    if let DatasetSource::Bag { .. } | DatasetSource::Mkv { .. } = source {
         if let Ok(raw) = source.read_raw(first) {
             slam.check_depth_raw(&raw.depth);
         }

@@ -168,6 +168,16 @@ pub enum DatasetError {
         #[source]
         source: rosbag::RosbagError,
     },
+    /// An Azure Kinect `.mkv` (or one of its frames) could not be read,
+    /// or (in [`Sequence::warnings`]) was read with a warning.
+    #[error("{path}: {source}")]
+    Mkv {
+        /// The .mkv file.
+        path: String,
+        /// What is wrong with it.
+        #[source]
+        source: mkv::MkvError,
+    },
     /// An image of a frame could not be decoded.
     #[error("{path}: {source}")]
     Frame {
@@ -219,11 +229,14 @@ pub enum DatasetKind {
     /// `rs-record`, up to 2.57): one ROS1 `.bag` file ([`rosbag`]),
     /// recognised by its first bytes.
     RealSenseBag,
+    /// Azure Kinect as `k4arecorder` records it: one Matroska `.mkv`
+    /// file ([`mkv`]), recognised by its first bytes.
+    AzureKinect,
 }
 
 impl DatasetKind {
     /// Short human-readable name (`TUM RGB-D`, `ICL-NUIM`, `7-Scenes`,
-    /// `RealSense`, `Stray Scanner`, `RealSense .bag`).
+    /// `RealSense`, `Stray Scanner`, `RealSense .bag`, `Azure Kinect .mkv`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
@@ -233,6 +246,7 @@ impl DatasetKind {
             Self::RealSense => "RealSense",
             Self::StrayScanner => "Stray Scanner",
             Self::RealSenseBag => "RealSense .bag",
+            Self::AzureKinect => "Azure Kinect .mkv",
         }
     }
 }
@@ -567,10 +581,10 @@ pub fn parse_sequence(
             imu = parsed.imu;
             (CameraPreset::StrayLidar, parsed.frames, Vec::new())
         }
-        DatasetKind::RealSenseBag => {
+        DatasetKind::RealSenseBag | DatasetKind::AzureKinect => {
             return Err(DatasetError::UnknownLayout {
-                hint: "a RealSense .bag is one file, read by its bytes (DatasetSource::open), \
-                       not a listing of files"
+                hint: "a RealSense .bag or an Azure Kinect .mkv is one file, read by its bytes \
+                       (DatasetSource::open), not a listing of files"
                     .to_owned(),
             })
         }

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use super::archive::{self, ArchiveReader};
 use super::decode::{decode_frame_bytes, FrameBytes, DEPTH_ONLY_GREY};
+use super::mkv::{self, AzureRecording};
 use super::rosbag::{self, ImuSample, RawFrame, RealSenseBag};
 use super::{detect_layout, parse_sequence, DatasetError, DatasetKind, FrameEntry, Sequence};
 use crate::frame::{DepthSettings, RgbdFrame};
@@ -102,6 +103,13 @@ pub enum DatasetSource {
         /// The recording, read on demand.
         bag: Box<RealSenseBag<BufReader<File>>>,
     },
+    /// An Azure Kinect recording (Matroska), its structure read when opened.
+    Mkv {
+        /// The .mkv file.
+        path: PathBuf,
+        /// The recording, read on demand.
+        mkv: Box<AzureRecording<BufReader<File>>>,
+    },
 }
 
 impl DatasetSource {
@@ -134,6 +142,19 @@ impl DatasetSource {
                 bag: Box::new(bag),
             });
         }
+        if head.starts_with(&[0x1A, 0x45, 0xDF, 0xA3]) {
+            let file = File::open(path).map_err(io)?;
+            let mkv = AzureRecording::open(BufReader::with_capacity(1 << 20, file)).map_err(
+                |source| DatasetError::Mkv {
+                    path: path.display().to_string(),
+                    source,
+                },
+            )?;
+            return Ok(Self::Mkv {
+                path: path.to_path_buf(),
+                mkv: Box::new(mkv),
+            });
+        }
         let file = File::open(path).map_err(io)?;
         let reader = ArchiveReader::new(file, &path.display().to_string())?;
         Ok(Self::Archive {
@@ -148,7 +169,7 @@ impl DatasetSource {
         match self {
             Self::Folder(dir) => list_files(dir),
             Self::Archive { reader, .. } => Ok(reader.names().to_vec()),
-            Self::Bag { path, .. } => Ok(vec![path.display().to_string()]),
+            Self::Bag { path, .. } | Self::Mkv { path, .. } => Ok(vec![path.display().to_string()]),
         }
     }
 
@@ -157,9 +178,9 @@ impl DatasetSource {
         match self {
             Self::Folder(dir) => read_bytes(dir, name),
             Self::Archive { reader, .. } => reader.read(name),
-            Self::Bag { path, .. } => Err(DatasetError::MissingFile {
+            Self::Bag { path, .. } | Self::Mkv { path, .. } => Err(DatasetError::MissingFile {
                 path: name.to_owned(),
-                listed_in: format!("{} (a .bag holds messages, not files)", path.display()),
+                listed_in: format!("{} (a recording holds streams, not files)", path.display()),
             }),
         }
     }
@@ -176,7 +197,7 @@ impl DatasetSource {
                     .map(|n| n.to_string_lossy().into_owned())
                     .unwrap_or_default()
             }
-            Self::Bag { path, .. } => path
+            Self::Bag { path, .. } | Self::Mkv { path, .. } => path
                 .file_stem()
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default(),
@@ -199,6 +220,9 @@ impl DatasetSource {
                 bag.recording(),
                 &path.display().to_string(),
             ));
+        }
+        if let Self::Mkv { path, mkv } = self {
+            return Ok(mkv::sequence_of(mkv, &path.display().to_string()));
         }
         let names = self.names()?;
         let layout = detect_layout(&names)?;
@@ -228,7 +252,7 @@ impl DatasetSource {
         entry: &FrameEntry,
         settings: &DepthSettings,
     ) -> Result<RgbdFrame, DatasetError> {
-        if let Self::Bag { .. } = self {
+        if let Self::Bag { .. } | Self::Mkv { .. } = self {
             let raw = self.read_raw(entry)?;
             let grey;
             let rgb = if raw.rgb.is_empty() {
@@ -247,7 +271,7 @@ impl DatasetSource {
         read_entry(entry, settings, |name| self.read(name))
     }
 
-    /// A `.bag` frame's raw depth (the recording's units) and its colour
+    /// A `.bag` or `.mkv` frame's raw depth (the recording's units) and its colour
     /// registered to it (empty without [`FrameEntry::colour`]); for the
     /// other sources, [`DatasetError::MissingFile`] (their frames are files:
     /// [`Self::read`]).
@@ -256,6 +280,13 @@ impl DatasetSource {
             Self::Bag { path, bag } => {
                 bag.read_frame(entry.index, entry.colour.is_some())
                     .map_err(|source| DatasetError::Rosbag {
+                        path: format!("{}, {}", path.display(), entry.depth),
+                        source,
+                    })
+            }
+            Self::Mkv { path, mkv } => {
+                mkv.read_frame(entry.index, entry.colour.is_some())
+                    .map_err(|source| DatasetError::Mkv {
                         path: format!("{}, {}", path.display(), entry.depth),
                         source,
                     })

@@ -82,7 +82,7 @@ export interface FinishReport {
 }
 
 /** The dataset layouts detectLayout recognises. */
-export type LayoutKind = 'tum' | 'icl-nuim' | '7-scenes' | 'realsense' | 'stray-scanner' | 'realsense-bag';
+export type LayoutKind = 'tum' | 'icl-nuim' | '7-scenes' | 'realsense' | 'stray-scanner' | 'realsense-bag' | 'azure-kinect';
 
 export interface Layout {
   kind: LayoutKind;
@@ -150,7 +150,7 @@ pub fn object(fields: &[(&str, JsValue)]) -> Object {
 }
 
 /// Short names of the dataset kinds in the JS API: `tum`, `icl-nuim`,
-/// `7-scenes`, `realsense`, `stray-scanner`, `realsense-bag`.
+/// `7-scenes`, `realsense`, `stray-scanner`, `realsense-bag`, `azure-kinect`.
 #[must_use]
 pub fn kind_name(kind: DatasetKind) -> &'static str {
     match kind {
@@ -160,6 +160,7 @@ pub fn kind_name(kind: DatasetKind) -> &'static str {
         DatasetKind::RealSense => "realsense",
         DatasetKind::StrayScanner => "stray-scanner",
         DatasetKind::RealSenseBag => "realsense-bag",
+        DatasetKind::AzureKinect => "azure-kinect",
     }
 }
 

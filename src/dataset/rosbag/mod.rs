@@ -35,7 +35,7 @@ pub use message::{CameraInfo, ImageHead};
 pub use reader::{RawFrame, RealSenseBag};
 pub use record::MAGIC;
 pub use recording::{BagFrame, ImuSample, Recording, DEFAULT_DEPTH_UNITS_M};
-pub use register::{CameraModel, Distortion, Registration};
+pub use register::{bilinear as sample_bilinear, CameraModel, Distortion, Registration};
 pub use scan::{Connection, Location};
 pub use sequence::{frame_name, sequence_of};
 

@@ -213,9 +213,9 @@ impl Registration {
     }
 }
 
-/// The colour at `(u, v)` (pixel centres at integers) of an RGB8 image,
-/// bilinearly; `None` outside it.
-fn bilinear(rgb: &[u8], width: usize, height: usize, u: f64, v: f64) -> Option<[u8; 3]> {
+/// The colour at `(u, v)` (pixel centres at integers) of an RGB8 image
+/// `width` x `height`, bilinearly; `None` outside it.
+pub fn bilinear(rgb: &[u8], width: usize, height: usize, u: f64, v: f64) -> Option<[u8; 3]> {
     if width == 0 || height == 0 {
         return None;
     }
