@@ -46,6 +46,8 @@ pub fn sequence_of<R>(recording: &AzureRecording<R>, path: &str) -> Sequence {
         frames,
         ground_truth: Vec::new(),
         odometry: Vec::new(),
+        // The IMU track is not read yet.
+        imu: Vec::new(),
         warnings: recording
             .warnings
             .iter()
