@@ -133,7 +133,7 @@ impl MotionPrior {
         camera_from_world: &DAffine3,
         pixels_per_residual: f64,
     ) -> NormalEquations {
-        if data.count == 0 || !(data.cost > 0.0) {
+        if data.count == 0 || data.cost.is_nan() || data.cost <= 0.0 {
             return system;
         }
         // Information per unit of the system: residuals of variance
@@ -146,7 +146,7 @@ impl MotionPrior {
         if !to_guess.iter().all(|v| v.is_finite()) {
             return system;
         }
-        for i in 0..6 {
+        for (i, step) in to_guess.iter().enumerate() {
             let sigma = if i < 3 {
                 self.sigma_r_rad
             } else {
@@ -155,7 +155,7 @@ impl MotionPrior {
             let information = scale / (sigma * sigma);
             system.a[i][i] += information;
             // Solved as (A) x = -b: the prior's pull towards `to_guess`.
-            system.b[i] -= information * to_guess[i];
+            system.b[i] -= information * step;
         }
         system
     }
