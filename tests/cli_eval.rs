@@ -418,9 +418,14 @@ fn run_reference_is_scored_like_the_ground_truth_in_each_format() {
             .split(" cm (")
             .nth(1)
             .and_then(|s| s.split(' ').next());
+        // The figure as printed (an f64 would drop a trailing zero).
+        let printed = a.stdout[a.stdout.find(&label).map_or(0, |i| i + label.len())..]
+            .split_whitespace()
+            .next()
+            .unwrap_or("?");
         assert!(
             a.stdout.contains(&format!(
-                "{difference} cm RMS ({} poses, by {by})",
+                "{printed} cm RMS ({} poses, by {by})",
                 pairs.unwrap_or("?")
             )),
             "{}",
