@@ -114,7 +114,13 @@ pub(crate) fn parse_rows_strict<'a, T>(
 ) -> Result<Vec<T>, DatasetError> {
     let mut warnings = Vec::new();
     let rows = parse_rows(text, file, comments, &mut warnings, parse)?;
-    match warnings.pop() {
+    strictly(rows, warnings.pop())
+}
+
+/// `value`, or the error a strict reader makes of `warning`: a cut-off
+/// last row ([`DatasetError::CutOffLine`]) is a malformed line there.
+pub(crate) fn strictly<T>(value: T, warning: Option<DatasetError>) -> Result<T, DatasetError> {
+    match warning {
         Some(DatasetError::CutOffLine {
             file,
             line_number,
@@ -127,7 +133,7 @@ pub(crate) fn parse_rows_strict<'a, T>(
             reason,
         }),
         Some(other) => Err(other),
-        None => Ok(rows),
+        None => Ok(value),
     }
 }
 

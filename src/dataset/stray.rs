@@ -42,7 +42,7 @@ use glam::{DAffine3, DQuat, DVec3};
 use crate::camera::Intrinsics;
 use crate::imu::ImuSample;
 
-use super::lines::{parse_rows, parse_rows_strict, Line};
+use super::lines::{parse_rows, parse_rows_strict, strictly, Line};
 use super::{index_text, numbered_in, CalibratedSize, DatasetError, FrameEntry, Layout};
 
 /// Width of the colour images `camera_matrix.csv` is calibrated for, pixels.
@@ -246,21 +246,7 @@ fn number(line: &Line<'_>, field: &str, what: &str) -> Result<f64, DatasetError>
 pub fn parse_camera_matrix(text: &str, file_name: &str) -> Result<Intrinsics, DatasetError> {
     let mut warnings = Vec::new();
     let k = read_camera_matrix(text, file_name, &mut warnings)?;
-    match warnings.pop() {
-        Some(DatasetError::CutOffLine {
-            file,
-            line_number,
-            line,
-            reason,
-        }) => Err(DatasetError::MalformedLine {
-            file,
-            line_number,
-            line,
-            reason,
-        }),
-        Some(other) => Err(other),
-        None => Ok(k),
-    }
+    strictly(k, warnings.pop())
 }
 
 /// [`parse_camera_matrix`] for a recording: a cut-off third row (never
