@@ -6,7 +6,9 @@
 //! pipeline, as the page and the wasm `Slam` do; a quarter of them with
 //! simulated Kinect noise), PLY export, changed range
 //! and trajectory reads, a session saved and loaded in place (a cut copy
-//! refused first), in any order. The runs are long enough to cross the
+//! refused first), IMU samples before frames (a third of the cases, half
+//! of them with the gyro as the rotation guess; now and then a batch with
+//! a NaN or going back in time, refused), in any order. The runs are long enough to cross the
 //! periodic cleanups, the spatial sorting and merging of settled surfels,
 //! the compaction of absorbed surfels and the surfel budget, and a reset
 //! after 100+ frames (what panicked in issue 19).
@@ -29,8 +31,10 @@ mod invariants;
 
 use common::synthetic_config;
 use frames::{encode_synthetic, odd_frame, png_8bit, real_pool, synthetic_pool, Garbage, Pool};
+use glam::DVec3;
 use invariants::{check, session_round_trip, Mapped, Model};
 use std::io::Cursor;
+use surfel_slam::imu::ImuSample;
 use surfel_slam::mesh::write_surfel_ply;
 use surfel_slam::random::SplitMix;
 use surfel_slam::session;
@@ -93,7 +97,22 @@ fn random_config(pool: &Pool, rng: &mut Rng) -> SlamConfig {
     if (draw >> 8) % 3 == 0 {
         config.restart_after_lost = 1 + ((draw >> 12) % 3) as u32;
     }
+    config.imu_rotation_guess = (draw >> 16) % 2 == 0;
     config
+}
+
+/// IMU samples at 100 Hz after `after_s` up to `until_s` (seconds), turning
+/// at `rate_radps` about a fixed axis, at rest otherwise.
+fn imu_samples(after_s: f64, until_s: f64, rate_radps: f64) -> Vec<ImuSample> {
+    let first = (after_s * 100.0).floor() as i64 + 1;
+    let last = (until_s * 100.0).floor() as i64;
+    (first..=last)
+        .map(|k| ImuSample {
+            time_s: k as f64 / 100.0,
+            accel_mps2: DVec3::new(0.0, 9.81, 0.0),
+            gyro_radps: DVec3::new(0.3, -0.2, 0.9).normalize() * rate_radps,
+        })
+        .collect()
 }
 
 /// What a case crossed, summed over cases.
@@ -125,6 +144,9 @@ struct Coverage {
     noisy_frames: usize,
     /// Frames pushed with a depth deviation map (a sensor's confidence).
     marked_frames: usize,
+    /// IMU batches accepted, and refused (a NaN, or back in time).
+    imu_batches: usize,
+    imu_refused: usize,
 }
 
 /// `frame` with every third pixel's depth deviation `factor` (1 elsewhere).
@@ -158,6 +180,12 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
     };
     let mut slam = Pipeline::new(random_config(pool, &mut rng)).expect("config");
     let mut model = Model::default();
+    // A third of the cases have an IMU, on a stream of its own so that the
+    // cases' other draws stay as they were.
+    let mut imu_rng = Rng(SplitMix::new(seed ^ 0x1a2b_3c4d));
+    let imu_rate = imu_rng
+        .chance(0.33)
+        .then(|| imu_rng.below(100) as f64 / 50.0);
     // Frames are played forwards and backwards (continuous motion).
     let period = (2 * pool.len()).saturating_sub(2).max(1);
     let mut cursor = rng.below(pool.len());
@@ -204,6 +232,16 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
             let k = cursor % period;
             let e = pool.frame(if k < pool.len() { k } else { period - k });
             cursor += 1;
+            if let Some(rate) = imu_rate {
+                push_imu(
+                    &mut slam,
+                    &mut imu_rng,
+                    (clock, clock + 1.0 / 30.0),
+                    rate,
+                    &mut cov,
+                    &at,
+                );
+            }
             clock += 1.0 / 30.0;
             let before = (slam.map().len(), slam.map().absorbed_len());
             if let Some(mapped) = &localising {
@@ -443,6 +481,54 @@ fn run_case(pool: &Pool, garbage: &Garbage, seed: u64, steps: usize, first_run: 
     cov
 }
 
+/// Pushes the IMU samples of `span` (seconds) at `rate` rad/s; one batch in
+/// ten is spoiled first (a NaN, or a sample back in time) and must be
+/// refused without changing what the pipeline holds.
+fn push_imu(
+    slam: &mut Pipeline,
+    rng: &mut Rng,
+    span: (f64, f64),
+    rate: f64,
+    cov: &mut Coverage,
+    at: &dyn Fn(&str) -> String,
+) {
+    let samples = imu_samples(span.0, span.1, rate);
+    if samples.is_empty() {
+        return;
+    }
+    if rng.chance(0.1) {
+        let mut spoiled = samples.clone();
+        let i = rng.below(spoiled.len());
+        if rng.chance(0.5) {
+            spoiled[i].gyro_radps.y = f64::NAN;
+        } else {
+            spoiled[i].time_s = span.0 - 1.0;
+        }
+        let before = (
+            slam.imu_rate_hz(),
+            slam.imu_calibration().cloned(),
+            slam.frames(),
+        );
+        let refused = slam.push_imu(&spoiled);
+        assert!(refused.is_err(), "{}", at("a spoiled IMU batch accepted"));
+        let after = (
+            slam.imu_rate_hz(),
+            slam.imu_calibration().cloned(),
+            slam.frames(),
+        );
+        assert_eq!(
+            before,
+            after,
+            "{}",
+            at("a refused IMU batch changed the state")
+        );
+        cov.imu_refused += 1;
+    }
+    slam.push_imu(&samples)
+        .unwrap_or_else(|err| panic!("{}", at(&format!("IMU samples refused: {err}"))));
+    cov.imu_batches += 1;
+}
+
 /// [`run_case`], naming the case when the library panics inside it.
 fn run_case_or_name_it(
     pool: &Pool,
@@ -479,6 +565,8 @@ fn add(total: &mut Coverage, c: Coverage) {
     total.localised += c.localised;
     total.noisy_frames += c.noisy_frames;
     total.marked_frames += c.marked_frames;
+    total.imu_batches += c.imu_batches;
+    total.imu_refused += c.imu_refused;
 }
 
 #[test]
@@ -524,6 +612,10 @@ fn any_sequence_of_calls_keeps_the_pipeline_consistent_on_synthetic_frames() {
     // with confidence maps.
     assert!(total.noisy_frames > 150, "{total:?}");
     assert!(total.marked_frames > 150, "{total:?}");
+    assert!(
+        total.imu_batches > 150 && total.imu_refused > 0,
+        "{total:?}"
+    );
 }
 
 #[test]
