@@ -17,9 +17,9 @@
 //! `SURFEL_PHONE_DETAILS=1` prints every frame.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
 
-use glam::{DAffine3, DVec3};
+use glam::{DAffine3, DQuat, DVec3, EulerRot};
 use surfel_slam::eval::ate;
-use surfel_slam::synthetic::{self, look_at, NoiseModel, Scene};
+use surfel_slam::synthetic::{self, look_at, ImuSimulation, NoiseModel, Scene};
 use surfel_slam::{CameraPreset, Pipeline, SlamConfig, Verdict};
 
 const RATE_HZ: f64 = 60.0;
@@ -29,6 +29,19 @@ const SECONDS: f64 = 6.0;
 fn ease(t: f64, a: f64, b: f64) -> f64 {
     let s = ((t - a) / (b - a)).clamp(0.0, 1.0);
     s * s * (3.0 - 2.0 * s)
+}
+
+/// [`walk`] as a hand holds it: a sway of a few degrees about every axis
+/// (0.4-1.3 Hz), as a phone held out in front turns while it walks.
+fn swaying_walk(t: f64) -> DAffine3 {
+    let tau = std::f64::consts::TAU;
+    let sway = DQuat::from_euler(
+        EulerRot::XYZ,
+        2.5_f64.to_radians() * (tau * 0.7 * t).sin(),
+        3.0_f64.to_radians() * (tau * 0.45 * t + 1.0).sin(),
+        2.0_f64.to_radians() * (tau * 1.3 * t + 2.0).sin(),
+    );
+    walk(t) * DAffine3::from_quat(sway)
 }
 
 /// The walk's `world_from_camera` at `t` seconds: looking into the room,
@@ -58,9 +71,11 @@ struct Run {
     ate_m: f64,
     lost: usize,
     held: usize,
+    /// The frame the IMU was calibrated at.
+    calibrated_at: Option<usize>,
 }
 
-fn run(config: SlamConfig) -> Run {
+fn run(config: SlamConfig, path: fn(f64) -> DAffine3, imu: bool) -> Run {
     let k = config.intrinsics;
     let scene = Scene::room();
     // An iPhone's LiDAR: 0.2 cm at 1 m and 1.8 cm at 3 m, growing with the square of the
@@ -70,8 +85,14 @@ fn run(config: SlamConfig) -> Run {
         ..NoiseModel::none()
     };
     let frames = (SECONDS * RATE_HZ) as usize;
-    let origin = walk(0.0).inverse();
+    let origin = path(0.0).inverse();
     let mut slam = Pipeline::new(config.clone()).unwrap();
+    let samples = if imu {
+        ImuSimulation::phone().simulate(path, 0.0, SECONDS + 0.5)
+    } else {
+        Vec::new()
+    };
+    let mut pushed = 0;
     let details = std::env::var_os("SURFEL_PHONE_DETAILS").is_some();
     let (mut estimate, mut truth) = (Vec::new(), Vec::new());
     let mut run = Run {
@@ -80,15 +101,23 @@ fn run(config: SlamConfig) -> Run {
         ate_m: 0.0,
         lost: 0,
         held: 0,
+        calibrated_at: None,
     };
     for i in 0..frames {
         let t = i as f64 / RATE_HZ;
-        let pose = walk(t);
+        let pose = path(t);
         let mut frame = synthetic::render(&scene, &k, &pose, &noise, i as u64)
             .to_frame(&config.depth)
             .unwrap();
         frame.rgb.fill(128);
+        let ahead = samples[pushed..].partition_point(|s| s.time_s <= t + 0.25);
+        slam.push_imu(&samples[pushed..pushed + ahead]).unwrap();
+        pushed += ahead;
         let report = slam.push_frame(&frame, t).unwrap();
+        if run.calibrated_at.is_none() && slam.imu_calibration().is_some() {
+            run.calibrated_at = Some(i);
+        }
+
         let placed = slam.trajectory().last().unwrap().1;
         let true_pose = origin * pose;
         if let (Some(&(_, before)), Some(&(_, true_before))) = (estimate.last(), truth.last()) {
@@ -121,6 +150,7 @@ fn run(config: SlamConfig) -> Run {
         truth.push((t, true_pose));
     }
     run.ate_m = ate(&estimate, &truth, 1e-3).unwrap().rmse_m;
+
     run
 }
 
@@ -132,7 +162,7 @@ fn phone_config() -> SlamConfig {
 
 #[test]
 fn a_phone_walking_up_to_a_bare_wall_moves_as_a_hand_can() {
-    let with = run(phone_config());
+    let with = run(phone_config(), walk, false);
     eprintln!(
         "motion prior: dishonest {:?}, fastest {:.2} m/s, ATE {:.2} cm, lost {}, held {}",
         with.dishonest,
@@ -143,7 +173,7 @@ fn a_phone_walking_up_to_a_bare_wall_moves_as_a_hand_can() {
     );
     let mut off = phone_config();
     off.tracker.motion_prior.enabled = false;
-    let without = run(off);
+    let without = run(off, walk, false);
     eprintln!(
         "no prior:     dishonest {:?}, fastest {:.2} m/s, ATE {:.2} cm, lost {}, held {}",
         without.dishonest,
@@ -160,6 +190,43 @@ fn a_phone_walking_up_to_a_bare_wall_moves_as_a_hand_can() {
     assert!(with.ate_m < 0.25, "{:.2} cm", with.ate_m * 100.0);
     assert!(
         with.ate_m < 0.5 * without.ate_m,
+        "{:.2} cm against {:.2} cm",
+        with.ate_m * 100.0,
+        without.ate_m * 100.0
+    );
+}
+
+/// With the phone's IMU (simulated at 100 Hz from the true path, a
+/// phone's gyro noise and bias, the device's axes turned from the
+/// camera's and its clock 10 ms off), calibrated from the walk's own first
+/// second of sway, the gyro turns the guess: the wall's free rotation
+/// follows the hand instead of the last step. Swaying walk, depth only:
+/// ATE 15.96 cm without the guess, 13.86 cm with it (the 30 cm slide
+/// along the wall is what is left); fastest placed speed 1.36 / 1.09 m/s.
+#[test]
+fn with_its_imu_the_phone_s_rotation_follows_the_gyro() {
+    let mut off = phone_config();
+    off.imu_rotation_guess = false;
+    let without = run(off, swaying_walk, true);
+    let with = run(phone_config(), swaying_walk, true);
+    eprintln!(
+        "gyro guess: ATE {:.2} cm, fastest {:.2} m/s, held {}; without: {:.2} cm, {:.2} m/s, held {}",
+        with.ate_m * 100.0,
+        with.fastest_mps,
+        with.held,
+        without.ate_m * 100.0,
+        without.fastest_mps,
+        without.held
+    );
+    assert!(
+        with.calibrated_at.is_some_and(|i| i < 120),
+        "{:?}",
+        with.calibrated_at
+    );
+    assert!(with.dishonest.is_empty(), "{:?}", with.dishonest);
+    assert!(with.fastest_mps < 3.0, "{:.2} m/s", with.fastest_mps);
+    assert!(
+        with.ate_m < 0.92 * without.ate_m,
         "{:.2} cm against {:.2} cm",
         with.ate_m * 100.0,
         without.ate_m * 100.0
