@@ -34,9 +34,11 @@ pub use chunk::MAX_CHUNK_BYTES;
 pub use message::{CameraInfo, ImageHead};
 pub use reader::{RawFrame, RealSenseBag};
 pub use record::MAGIC;
+pub(crate) use recording::Collected;
 pub use recording::{BagFrame, ImuSample, Recording, DEFAULT_DEPTH_UNITS_M};
 pub use register::{bilinear as sample_bilinear, CameraModel, Distortion, Registration};
 pub use scan::{Connection, Location};
+pub(crate) use sequence::frames_of;
 pub use sequence::{frame_name, sequence_of};
 
 /// Whether a file's first bytes are a ROS bag's (of any version).
