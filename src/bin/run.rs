@@ -317,7 +317,9 @@ fn check_settings(
     } else {
         slam.check_layout(sequence.preset, chosen);
     }
-    if let DatasetSource::Bag { .. } | DatasetSource::Db3 { .. } | DatasetSource::Mkv { .. } = source {
+    if let DatasetSource::Bag { .. } | DatasetSource::Db3 { .. } | DatasetSource::Mkv { .. } =
+        source
+    {
         if let Ok(raw) = source.read_raw(first) {
             slam.check_depth_raw(&raw.depth);
         }

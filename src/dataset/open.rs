@@ -156,12 +156,13 @@ impl DatasetSource {
             let file = File::open(path).map_err(io)?;
             // Pages are read in order where they can be: a small buffer
             // serves the overflow pages of one image without re-reading.
-            let db3 = RealSenseDb3::open(BufReader::with_capacity(1 << 16, file)).map_err(
-                |source| DatasetError::Db3 {
-                    path: path.display().to_string(),
-                    source,
-                },
-            )?;
+            let db3 =
+                RealSenseDb3::open(BufReader::with_capacity(1 << 16, file)).map_err(|source| {
+                    DatasetError::Db3 {
+                        path: path.display().to_string(),
+                        source,
+                    }
+                })?;
             return Ok(Self::Db3 {
                 path: path.to_path_buf(),
                 db3: Box::new(db3),
@@ -207,11 +208,8 @@ impl DatasetSource {
             Self::Archive { reader, .. } => reader.read(name),
             Self::Bag { path, .. } | Self::Db3 { path, .. } | Self::Mkv { path, .. } => {
                 Err(DatasetError::MissingFile {
-                path: name.to_owned(),
-                    listed_in: format!(
-                        "{} (a recording holds streams, not files)",
-                        path.display()
-                    ),
+                    path: name.to_owned(),
+                    listed_in: format!("{} (a recording holds streams, not files)", path.display()),
                 })
             }
         }

@@ -230,7 +230,10 @@ mod tests {
         }
         let mut other = bytes.clone();
         other[1] = 9;
-        assert!(compressed_head(&other, "t").is_err(), "an unknown encapsulation");
+        assert!(
+            compressed_head(&other, "t").is_err(),
+            "an unknown encapsulation"
+        );
     }
 
     #[test]

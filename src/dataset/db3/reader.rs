@@ -112,11 +112,7 @@ impl<R: Read + Seek> RealSenseDb3<R> {
 }
 
 /// Refuses an image whose size is not its stream's.
-fn same_size(
-    found: (usize, usize),
-    stream: (usize, usize),
-    topic: &str,
-) -> Result<(), Db3Error> {
+fn same_size(found: (usize, usize), stream: (usize, usize), topic: &str) -> Result<(), Db3Error> {
     if found == stream {
         return Ok(());
     }

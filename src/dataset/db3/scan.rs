@@ -253,7 +253,10 @@ fn visit(
             } else if topic.ends_with("/camera_info") {
                 if let Some(info) = camera_info_string(&text) {
                     // Where the ROS1 reader looks first.
-                    let key = format!("{}/info/camera_info", stream(topic.trim_end_matches("/camera_info")));
+                    let key = format!(
+                        "{}/info/camera_info",
+                        stream(topic.trim_end_matches("/camera_info"))
+                    );
                     c.add_camera_info(&key, info);
                 }
             } else if let Ok(units) = text.trim().parse::<f32>() {
@@ -298,23 +301,33 @@ mod tests {
         assert_eq!(info.distortion_model, "Brown Conrady");
         assert_eq!(info.d, vec![0.0; 5]);
         // A quarter turn about z: x goes to y.
-        let (t, q) = transform_string(
-            "rotation=0,-1,0,1,0,0,0,0,1;translation=0.015,0,0",
-        )
-        .expect("reads");
+        let (t, q) =
+            transform_string("rotation=0,-1,0,1,0,0,0,0,1;translation=0.015,0,0").expect("reads");
         assert_eq!(t, [0.015, 0.0, 0.0]);
         let q = DQuat::from_xyzw(q[0], q[1], q[2], q[3]);
         let x = q * glam::DVec3::X;
         assert!((x - glam::DVec3::Y).length() < 1e-12, "{x}");
         assert!(transform_string("rotation=1,0;translation=0,0,0").is_none());
-        assert_eq!(stream("/device_0/sensor_0/Depth_0/image/metadata"), "/device_0/sensor_0/Depth_0");
-        assert_eq!(stream("/device_0/sensor_0/Depth_0/tf/ref_1"), "/device_0/sensor_0/Depth_0");
+        assert_eq!(
+            stream("/device_0/sensor_0/Depth_0/image/metadata"),
+            "/device_0/sensor_0/Depth_0"
+        );
+        assert_eq!(
+            stream("/device_0/sensor_0/Depth_0/tf/ref_1"),
+            "/device_0/sensor_0/Depth_0"
+        );
     }
 
     #[test]
     fn png_formats() {
-        assert_eq!(png_encoding("16UC1; compressedDepth png", "t"), Ok("16UC1".to_owned()));
-        assert_eq!(png_encoding("rgb8; png compressed bgr8", "t"), Ok("rgb8".to_owned()));
+        assert_eq!(
+            png_encoding("16UC1; compressedDepth png", "t"),
+            Ok("16UC1".to_owned())
+        );
+        assert_eq!(
+            png_encoding("rgb8; png compressed bgr8", "t"),
+            Ok("rgb8".to_owned())
+        );
         assert!(matches!(
             png_encoding("16UC1; compressedDepth rvl", "t"),
             Err(Db3Error::UnsupportedCompression { .. })

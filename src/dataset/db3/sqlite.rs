@@ -169,7 +169,10 @@ impl<R: Read + Seek> Sqlite<R> {
             return Err(corrupt(0, format!("{usable} usable bytes a page")));
         }
         if be(&head[56..60]) > 1 {
-            return Err(corrupt(0, "text not UTF-8 (UTF-16 databases are not read)".to_owned()));
+            return Err(corrupt(
+                0,
+                "text not UTF-8 (UTF-16 databases are not read)".to_owned(),
+            ));
         }
         // The header's page count holds when its change counter matches
         // the "version valid for" field; otherwise the file's length says.
@@ -248,7 +251,10 @@ impl<R: Read + Seek> Sqlite<R> {
             0x05 => true,
             0x0d => false,
             other => {
-                return Err(corrupt(n, format!("not a table b-tree page (type {other:#04x})")));
+                return Err(corrupt(
+                    n,
+                    format!("not a table b-tree page (type {other:#04x})"),
+                ));
             }
         };
         let cells = be(&p[base + 3..base + 5]) as usize;
@@ -262,8 +268,14 @@ impl<R: Read + Seek> Sqlite<R> {
             .get(base + header..base + header + 2 * cells)
             .ok_or_else(|| corrupt(n, format!("{cells} cells do not fit the page")))?;
         let offsets: Vec<usize> = pointers.chunks_exact(2).map(|c| be(c) as usize).collect();
-        if let Some(bad) = offsets.iter().find(|&&o| o < base + header || o >= self.usable) {
-            return Err(corrupt(n, format!("a cell at byte {bad}, outside the page")));
+        if let Some(bad) = offsets
+            .iter()
+            .find(|&&o| o < base + header || o >= self.usable)
+        {
+            return Err(corrupt(
+                n,
+                format!("a cell at byte {bad}, outside the page"),
+            ));
         }
         Ok((kind, offsets, right))
     }
@@ -312,7 +324,10 @@ impl<R: Read + Seek> Sqlite<R> {
             let mut left_pages = (len - local as u64).div_ceil(chunk as u64);
             while (out.len() as u64) < want {
                 if left_pages == 0 {
-                    return Err(corrupt(n, "an overflow chain longer than its payload".into()));
+                    return Err(corrupt(
+                        n,
+                        "an overflow chain longer than its payload".into(),
+                    ));
                 }
                 left_pages -= 1;
                 self.load(next)?;
