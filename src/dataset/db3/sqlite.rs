@@ -307,7 +307,10 @@ impl<R: Read + Seek> Sqlite<R> {
         let start = offset + a + b;
         let local = self.local_len(len);
         let want = len.min(limit);
-        if want > MAX_PAYLOAD {
+        // A forged length must not allocate more than the file holds.
+        let chunk = (self.usable - 4) as u64;
+        let overflow_pages = len.saturating_sub(local as u64).div_ceil(chunk);
+        if want > MAX_PAYLOAD || overflow_pages > u64::from(self.pages) {
             return Err(corrupt(n, format!("a row of {len} bytes")));
         }
         let mut out = Vec::with_capacity(want as usize);
@@ -321,7 +324,7 @@ impl<R: Read + Seek> Sqlite<R> {
             let mut next = be(next) as u32;
             let chunk = self.usable - 4;
             // A chain longer than the payload needs is a loop.
-            let mut left_pages = (len - local as u64).div_ceil(chunk as u64);
+            let mut left_pages = overflow_pages;
             while (out.len() as u64) < want {
                 if left_pages == 0 {
                     return Err(corrupt(
