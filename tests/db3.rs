@@ -276,6 +276,20 @@ fn damaged_files_are_errors_not_panics() {
         err.to_string().contains("compressedDepth rvl") && err.to_string().contains(DEPTH),
         "{err}"
     );
+    // No 16-bit depth stream: refused, naming the image topics found.
+    let mut bad = bytes.clone();
+    assert!(
+        replace_all(
+            &mut bad,
+            b"16UC1; compressedDepth",
+            b"mono8; compressedDepth"
+        ) >= 8
+    );
+    let err = read_all(bad).expect_err("no depth stream");
+    assert!(
+        err.to_string().starts_with("no depth stream") && err.to_string().contains(COLOUR),
+        "{err}"
+    );
     // Flipped bytes anywhere: errors or frames, never a panic.
     for _ in 0..300 {
         let mut bad = bytes.clone();

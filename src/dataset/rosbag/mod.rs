@@ -108,7 +108,7 @@ pub enum RosbagError {
         coefficients: usize,
     },
     /// No depth stream: no image topic of 16-bit depth.
-    #[error("no depth stream: no sensor_msgs/Image topic of 16-bit depth (mono16 or 16UC1) in the complete chunks; image topics: {}", if image_topics.is_empty() { "none".to_owned() } else { image_topics.join(", ") })]
+    #[error("no depth stream: no image topic of 16-bit depth (mono16 or 16UC1; a sensor_msgs/Image, or a CompressedImage in a .db3) in the messages read; image topics: {}", if image_topics.is_empty() { "none".to_owned() } else { image_topics.join(", ") })]
     NoDepthStream {
         /// The image topics found, with their encodings.
         image_topics: Vec<String>,
