@@ -212,7 +212,7 @@ fn read_sequence(args: &BenchArgs) -> Result<(Sequence, Vec<FrameInput>)> {
     }
     if matches!(
         sequence.kind,
-        DatasetKind::RealSenseBag | DatasetKind::AzureKinect
+        DatasetKind::RealSenseBag | DatasetKind::RealSenseDb3 | DatasetKind::AzureKinect
     ) {
         for warning in &sequence.warnings {
             eprintln!("warning: {warning}");

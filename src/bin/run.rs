@@ -38,7 +38,8 @@ const EXIT_FRAMES_SKIPPED: u8 = 3;
 #[derive(Args)]
 pub struct RunArgs {
     /// Dataset folder, archive (.zip, .tar, .tar.gz / .tgz) read in place,
-    /// or RealSense recording (.bag); layout detected automatically.
+    /// or recording (RealSense .bag or .db3, Azure Kinect .mkv); layout
+    /// detected automatically.
     pub(crate) dataset: PathBuf,
     /// Write the estimated trajectory here (TUM format, world_from_camera).
     #[arg(long)]
@@ -316,7 +317,9 @@ fn check_settings(
     } else {
         slam.check_layout(sequence.preset, chosen);
     }
-    if let DatasetSource::Bag { .. } | DatasetSource::Mkv { .. } = source {
+    if let DatasetSource::Bag { .. } | DatasetSource::Db3 { .. } | DatasetSource::Mkv { .. } =
+        source
+    {
         if let Ok(raw) = source.read_raw(first) {
             slam.check_depth_raw(&raw.depth);
         }

@@ -24,6 +24,7 @@
 //! numbers (ICL-NUIM, 7-Scenes, RealSense).
 
 pub mod archive;
+pub mod db3;
 mod decode;
 pub mod icl_nuim;
 mod lines;
@@ -168,6 +169,16 @@ pub enum DatasetError {
         #[source]
         source: rosbag::RosbagError,
     },
+    /// A RealSense ROS2 `.db3` (or one of its frames) could not be read,
+    /// or (in [`Sequence::warnings`]) was read with a warning.
+    #[error("{path}: {source}")]
+    Db3 {
+        /// The .db3 file.
+        path: String,
+        /// What is wrong with it.
+        #[source]
+        source: db3::Db3Error,
+    },
     /// An Azure Kinect `.mkv` (or one of its frames) could not be read,
     /// or (in [`Sequence::warnings`]) was read with a warning.
     #[error("{path}: {source}")]
@@ -229,6 +240,10 @@ pub enum DatasetKind {
     /// `rs-record`, up to 2.57): one ROS1 `.bag` file ([`rosbag`]),
     /// recognised by its first bytes.
     RealSenseBag,
+    /// Intel RealSense as librealsense 2.58 and later records it: one
+    /// ROS2 bag, an SQLite `.db3` file ([`db3`]), recognised by its first
+    /// bytes.
+    RealSenseDb3,
     /// Azure Kinect as `k4arecorder` records it: one Matroska `.mkv`
     /// file ([`mkv`]), recognised by its first bytes.
     AzureKinect,
@@ -236,7 +251,8 @@ pub enum DatasetKind {
 
 impl DatasetKind {
     /// Short human-readable name (`TUM RGB-D`, `ICL-NUIM`, `7-Scenes`,
-    /// `RealSense`, `Stray Scanner`, `RealSense .bag`, `Azure Kinect .mkv`).
+    /// `RealSense`, `Stray Scanner`, `RealSense .bag`, `RealSense .db3`,
+    /// `Azure Kinect .mkv`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
@@ -246,6 +262,7 @@ impl DatasetKind {
             Self::RealSense => "RealSense",
             Self::StrayScanner => "Stray Scanner",
             Self::RealSenseBag => "RealSense .bag",
+            Self::RealSenseDb3 => "RealSense .db3",
             Self::AzureKinect => "Azure Kinect .mkv",
         }
     }
@@ -581,9 +598,9 @@ pub fn parse_sequence(
             imu = parsed.imu;
             (CameraPreset::StrayLidar, parsed.frames, Vec::new())
         }
-        DatasetKind::RealSenseBag | DatasetKind::AzureKinect => {
+        DatasetKind::RealSenseBag | DatasetKind::RealSenseDb3 | DatasetKind::AzureKinect => {
             return Err(DatasetError::UnknownLayout {
-                hint: "a RealSense .bag or an Azure Kinect .mkv is one file, read by its bytes \
+                hint: "a RealSense .bag or .db3 or an Azure Kinect .mkv is one file, read by its bytes \
                        (DatasetSource::open), not a listing of files"
                     .to_owned(),
             })

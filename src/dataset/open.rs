@@ -7,6 +7,7 @@ use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use super::archive::{self, ArchiveReader};
+use super::db3::{self, RealSenseDb3};
 use super::decode::{decode_frame_bytes, FrameBytes, DEPTH_ONLY_GREY};
 use super::mkv::{self, AzureRecording};
 use super::rosbag::{self, ImuSample, RawFrame, RealSenseBag};
@@ -74,7 +75,8 @@ fn read_bytes(root: &Path, name: &str) -> Result<Vec<u8>, DatasetError> {
 
 impl Sequence {
     /// Opens a dataset natively, a folder, an archive file (`.zip`, `.tar`,
-    /// `.tar.gz`/`.tgz`) or a RealSense `.bag` (see [`DatasetSource`]): lists it, detects the layout,
+    /// `.tar.gz`/`.tgz`) or a recording (RealSense `.bag` or `.db3`, Azure
+    /// Kinect `.mkv`; see [`DatasetSource`]): lists it, detects the layout,
     /// reads the index files (7-Scenes: the per-frame pose files). Frame paths
     /// are relative to `path`; for a folder pass `path` as `root` to
     /// [`read_frame`], for an archive read frames through a [`DatasetSource`].
@@ -84,8 +86,9 @@ impl Sequence {
 }
 
 /// Where a dataset's files are read from natively: a folder, an archive
-/// file read in place (never unpacked to disk), or a RealSense `.bag`
-/// (frames decoded from its messages, one chunk in memory at a time).
+/// file read in place (never unpacked to disk), or a recording (RealSense
+/// `.bag` or `.db3`, Azure `.mkv`: frames decoded from its messages, one
+/// chunk or message in memory at a time).
 pub enum DatasetSource {
     /// A dataset folder.
     Folder(PathBuf),
@@ -103,6 +106,13 @@ pub enum DatasetSource {
         /// The recording, read on demand.
         bag: Box<RealSenseBag<BufReader<File>>>,
     },
+    /// A RealSense recording (ROS2 bag, SQLite `.db3`), scanned once when opened.
+    Db3 {
+        /// The .db3 file.
+        path: PathBuf,
+        /// The recording, read on demand.
+        db3: Box<RealSenseDb3<BufReader<File>>>,
+    },
     /// An Azure Kinect recording (Matroska), its structure read when opened.
     Mkv {
         /// The .mkv file.
@@ -113,7 +123,7 @@ pub enum DatasetSource {
 }
 
 impl DatasetSource {
-    /// A folder, or a file read as a RealSense `.bag` or an archive (its
+    /// A folder, or a file read as a recording (`.bag`, `.db3`, `.mkv`) or an archive (its
     /// format sniffed from its first bytes, whatever its extension; errors
     /// name the file).
     pub fn open(path: &Path) -> Result<Self, DatasetError> {
@@ -140,6 +150,22 @@ impl DatasetSource {
             return Ok(Self::Bag {
                 path: path.to_path_buf(),
                 bag: Box::new(bag),
+            });
+        }
+        if db3::is_sqlite(&head) {
+            let file = File::open(path).map_err(io)?;
+            // Pages are read in order where they can be: a small buffer
+            // serves the overflow pages of one image without re-reading.
+            let db3 =
+                RealSenseDb3::open(BufReader::with_capacity(1 << 16, file)).map_err(|source| {
+                    DatasetError::Db3 {
+                        path: path.display().to_string(),
+                        source,
+                    }
+                })?;
+            return Ok(Self::Db3 {
+                path: path.to_path_buf(),
+                db3: Box::new(db3),
             });
         }
         if head.starts_with(&[0x1A, 0x45, 0xDF, 0xA3]) {
@@ -169,7 +195,9 @@ impl DatasetSource {
         match self {
             Self::Folder(dir) => list_files(dir),
             Self::Archive { reader, .. } => Ok(reader.names().to_vec()),
-            Self::Bag { path, .. } | Self::Mkv { path, .. } => Ok(vec![path.display().to_string()]),
+            Self::Bag { path, .. } | Self::Db3 { path, .. } | Self::Mkv { path, .. } => {
+                Ok(vec![path.display().to_string()])
+            }
         }
     }
 
@@ -178,10 +206,12 @@ impl DatasetSource {
         match self {
             Self::Folder(dir) => read_bytes(dir, name),
             Self::Archive { reader, .. } => reader.read(name),
-            Self::Bag { path, .. } | Self::Mkv { path, .. } => Err(DatasetError::MissingFile {
-                path: name.to_owned(),
-                listed_in: format!("{} (a recording holds streams, not files)", path.display()),
-            }),
+            Self::Bag { path, .. } | Self::Db3 { path, .. } | Self::Mkv { path, .. } => {
+                Err(DatasetError::MissingFile {
+                    path: name.to_owned(),
+                    listed_in: format!("{} (a recording holds streams, not files)", path.display()),
+                })
+            }
         }
     }
 
@@ -197,7 +227,7 @@ impl DatasetSource {
                     .map(|n| n.to_string_lossy().into_owned())
                     .unwrap_or_default()
             }
-            Self::Bag { path, .. } | Self::Mkv { path, .. } => path
+            Self::Bag { path, .. } | Self::Db3 { path, .. } | Self::Mkv { path, .. } => path
                 .file_stem()
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default(),
@@ -218,6 +248,12 @@ impl DatasetSource {
         if let Self::Bag { path, bag } = self {
             return Ok(rosbag::sequence_of(
                 bag.recording(),
+                &path.display().to_string(),
+            ));
+        }
+        if let Self::Db3 { path, db3 } = self {
+            return Ok(db3::sequence_of(
+                db3.recording(),
                 &path.display().to_string(),
             ));
         }
@@ -252,7 +288,7 @@ impl DatasetSource {
         entry: &FrameEntry,
         settings: &DepthSettings,
     ) -> Result<RgbdFrame, DatasetError> {
-        if let Self::Bag { .. } | Self::Mkv { .. } = self {
+        if let Self::Bag { .. } | Self::Db3 { .. } | Self::Mkv { .. } = self {
             let raw = self.read_raw(entry)?;
             let grey;
             let rgb = if raw.rgb.is_empty() {
@@ -271,7 +307,7 @@ impl DatasetSource {
         read_entry(entry, settings, |name| self.read(name))
     }
 
-    /// A `.bag` or `.mkv` frame's raw depth (the recording's units) and its colour
+    /// A `.bag`, `.db3` or `.mkv` frame's raw depth (the recording's units) and its colour
     /// registered to it (empty without [`FrameEntry::colour`]); for the
     /// other sources, [`DatasetError::MissingFile`] (their frames are files:
     /// [`Self::read`]).
@@ -280,6 +316,13 @@ impl DatasetSource {
             Self::Bag { path, bag } => {
                 bag.read_frame(entry.index, entry.colour.is_some())
                     .map_err(|source| DatasetError::Rosbag {
+                        path: format!("{}, {}", path.display(), entry.depth),
+                        source,
+                    })
+            }
+            Self::Db3 { path, db3 } => {
+                db3.read_frame(entry.index, entry.colour.is_some())
+                    .map_err(|source| DatasetError::Db3 {
                         path: format!("{}, {}", path.display(), entry.depth),
                         source,
                     })
@@ -298,12 +341,13 @@ impl DatasetSource {
         }
     }
 
-    /// The recording's IMU samples, in time order (a RealSense `.bag` with
+    /// The recording's IMU samples, in time order (a RealSense `.bag` or `.db3` with
     /// motion streams); empty for the other sources.
     #[must_use]
     pub fn imu(&self) -> &[ImuSample] {
         match self {
             Self::Bag { bag, .. } => &bag.recording().imu,
+            Self::Db3 { db3, .. } => &db3.recording().imu,
             _ => &[],
         }
     }

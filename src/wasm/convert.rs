@@ -82,7 +82,7 @@ export interface FinishReport {
 }
 
 /** The dataset layouts detectLayout recognises. */
-export type LayoutKind = 'tum' | 'icl-nuim' | '7-scenes' | 'realsense' | 'stray-scanner' | 'realsense-bag' | 'azure-kinect';
+export type LayoutKind = 'tum' | 'icl-nuim' | '7-scenes' | 'realsense' | 'stray-scanner' | 'realsense-bag' | 'realsense-db3' | 'azure-kinect';
 
 export interface Layout {
   kind: LayoutKind;
@@ -150,7 +150,7 @@ pub fn object(fields: &[(&str, JsValue)]) -> Object {
 }
 
 /// Short names of the dataset kinds in the JS API: `tum`, `icl-nuim`,
-/// `7-scenes`, `realsense`, `stray-scanner`, `realsense-bag`, `azure-kinect`.
+/// `7-scenes`, `realsense`, `stray-scanner`, `realsense-bag`, `realsense-db3`, `azure-kinect`.
 #[must_use]
 pub fn kind_name(kind: DatasetKind) -> &'static str {
     match kind {
@@ -160,6 +160,7 @@ pub fn kind_name(kind: DatasetKind) -> &'static str {
         DatasetKind::RealSense => "realsense",
         DatasetKind::StrayScanner => "stray-scanner",
         DatasetKind::RealSenseBag => "realsense-bag",
+        DatasetKind::RealSenseDb3 => "realsense-db3",
         DatasetKind::AzureKinect => "azure-kinect",
     }
 }

@@ -34,9 +34,11 @@ pub use chunk::MAX_CHUNK_BYTES;
 pub use message::{CameraInfo, ImageHead};
 pub use reader::{RawFrame, RealSenseBag};
 pub use record::MAGIC;
+pub(crate) use recording::Collected;
 pub use recording::{BagFrame, ImuSample, Recording, DEFAULT_DEPTH_UNITS_M};
 pub use register::{bilinear as sample_bilinear, CameraModel, Distortion, Registration};
 pub use scan::{Connection, Location};
+pub(crate) use sequence::frames_of;
 pub use sequence::{frame_name, sequence_of};
 
 /// Whether a file's first bytes are a ROS bag's (of any version).
@@ -106,7 +108,7 @@ pub enum RosbagError {
         coefficients: usize,
     },
     /// No depth stream: no image topic of 16-bit depth.
-    #[error("no depth stream: no sensor_msgs/Image topic of 16-bit depth (mono16 or 16UC1) in the complete chunks; image topics: {}", if image_topics.is_empty() { "none".to_owned() } else { image_topics.join(", ") })]
+    #[error("no depth stream: no image topic of 16-bit depth (mono16 or 16UC1; a sensor_msgs/Image, or a CompressedImage in a .db3) in the messages read; image topics: {}", if image_topics.is_empty() { "none".to_owned() } else { image_topics.join(", ") })]
     NoDepthStream {
         /// The image topics found, with their encodings.
         image_topics: Vec<String>,

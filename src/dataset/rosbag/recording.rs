@@ -4,7 +4,9 @@
 //! `camera_info` (`.../info/camera_info`) and extrinsics (`.../tf/N`, from
 //! the device's reference stream N to this one), the depth units option
 //! (`/device_0/sensor_0/option/Depth Units/value`, metres per unit), the
-//! IMU samples; then colour paired with depth by timestamp.
+//! IMU samples; then colour paired with depth by timestamp. A ROS2 `.db3`
+//! recording ([`crate::dataset::db3`]) fills the same [`Collected`] from its
+//! own messages (`L`: where its messages lie) and is assembled here too.
 
 use std::collections::HashMap;
 
@@ -36,18 +38,18 @@ pub struct ImuSample {
 /// One frame of the recording: a depth image and, when one lies within
 /// half a frame period, the colour image nearest in time.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BagFrame {
+pub struct BagFrame<L = Location> {
     /// The depth image's stamp, seconds.
     pub time_s: f64,
     /// Where the depth image lies.
-    pub depth: Location,
+    pub depth: L,
     /// The colour image's stamp (seconds) and place, if paired.
-    pub colour: Option<(f64, Location)>,
+    pub colour: Option<(f64, L)>,
 }
 
 /// What a recording holds; see the module documentation.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Recording {
+pub struct Recording<L = Location> {
     /// The depth stream's topic.
     pub depth_topic: String,
     /// The depth camera (its intrinsics drive tracking).
@@ -61,7 +63,7 @@ pub struct Recording {
     /// Colour images in the colour stream.
     pub colour_images: usize,
     /// Frames in time order.
-    pub frames: Vec<BagFrame>,
+    pub frames: Vec<BagFrame<L>>,
     /// IMU samples in time order.
     pub imu: Vec<ImuSample>,
     /// What did not stop the recording (no depth units, colour without
@@ -71,22 +73,84 @@ pub struct Recording {
 
 /// An image topic's first image and every image's stamp and place.
 #[derive(Debug, Clone)]
-struct ImageTopic {
+struct ImageTopic<L> {
     first: ImageHead,
-    images: Vec<(f64, Location)>,
+    images: Vec<(f64, L)>,
 }
 
 /// The messages a scan keeps; see [`Collected::visit`].
-#[derive(Debug, Default)]
-pub(crate) struct Collected {
-    images: HashMap<String, ImageTopic>,
+#[derive(Debug)]
+pub(crate) struct Collected<L = Location> {
+    images: HashMap<String, ImageTopic<L>>,
     camera_info: HashMap<String, CameraInfo>,
     transforms: HashMap<String, ([f64; 3], [f64; 4])>,
     depth_units: HashMap<String, f32>,
     imu: Vec<ImuSample>,
 }
 
-impl Collected {
+impl<L> Default for Collected<L> {
+    fn default() -> Self {
+        Self {
+            images: HashMap::new(),
+            camera_info: HashMap::new(),
+            transforms: HashMap::new(),
+            depth_units: HashMap::new(),
+            imu: Vec::new(),
+        }
+    }
+}
+
+impl<L> Collected<L> {
+    /// Keeps an image's stamp (seconds) and place; `head` describes its
+    /// pixels (the first of each topic is kept).
+    pub(crate) fn add_image(&mut self, topic: &str, head: ImageHead, location: L) {
+        let stamp = head.stamp_s;
+        self.images
+            .entry(topic.to_owned())
+            .or_insert_with(|| ImageTopic {
+                first: head,
+                images: Vec::new(),
+            })
+            .images
+            .push((stamp, location));
+    }
+
+    /// Whether `topic`'s camera info is already kept.
+    pub(crate) fn has_camera_info(&self, topic: &str) -> bool {
+        self.camera_info.contains_key(topic)
+    }
+
+    /// Keeps a topic's first camera info.
+    pub(crate) fn add_camera_info(&mut self, topic: &str, info: CameraInfo) {
+        self.camera_info.entry(topic.to_owned()).or_insert(info);
+    }
+
+    /// Keeps a topic's first transform: translation (metres), rotation `[x, y, z, w]`.
+    pub(crate) fn add_transform(&mut self, topic: &str, tf: ([f64; 3], [f64; 4])) {
+        self.transforms.entry(topic.to_owned()).or_insert(tf);
+    }
+
+    /// Keeps a depth units option (metres per unit), if `topic` is one.
+    pub(crate) fn add_depth_units(&mut self, topic: &str, units: f32) {
+        if is_depth_units_topic(topic) {
+            self.depth_units.entry(topic.to_owned()).or_insert(units);
+        }
+    }
+
+    /// Keeps an IMU sample of `topic` (librealsense's `Accel`/`Gyro`
+    /// streams hold one of the two vectors).
+    pub(crate) fn add_imu(&mut self, topic: &str, time_s: f64, gyro: [f64; 3], accel: [f64; 3]) {
+        let lower = topic.to_ascii_lowercase();
+        let (is_accel, is_gyro) = (lower.contains("accel"), lower.contains("gyro"));
+        self.imu.push(ImuSample {
+            time_s,
+            accel_mps2: (!is_gyro).then_some(accel),
+            gyro_radps: (!is_accel).then_some(gyro),
+        });
+    }
+}
+
+impl Collected<Location> {
     /// Keeps what a message says (an image's stamp and place, not its
     /// pixels; the first camera info, transform and depth units of each
     /// topic; every IMU sample).
@@ -100,37 +164,23 @@ impl Collected {
         match conn.msg_type.as_str() {
             "sensor_msgs/Image" => {
                 let head = message::image_head(data, topic)?;
-                let stamp = head.stamp_s;
-                self.images
-                    .entry(topic.to_owned())
-                    .or_insert_with(|| ImageTopic {
-                        first: head,
-                        images: Vec::new(),
-                    })
-                    .images
-                    .push((stamp, location));
+                self.add_image(topic, head, location);
             }
             "sensor_msgs/CameraInfo" if !self.camera_info.contains_key(topic) => {
                 let info = message::camera_info(data, topic)?;
-                self.camera_info.insert(topic.to_owned(), info);
+                self.add_camera_info(topic, info);
             }
             "geometry_msgs/Transform" if !self.transforms.contains_key(topic) => {
                 let tf = message::transform(data, topic)?;
-                self.transforms.insert(topic.to_owned(), tf);
+                self.add_transform(topic, tf);
             }
             "std_msgs/Float32" if is_depth_units_topic(topic) => {
                 let units = message::float32(data, topic)?;
-                self.depth_units.entry(topic.to_owned()).or_insert(units);
+                self.add_depth_units(topic, units);
             }
             "sensor_msgs/Imu" => {
                 let (time_s, gyro, accel) = message::imu(data, topic)?;
-                let lower = topic.to_ascii_lowercase();
-                let (is_accel, is_gyro) = (lower.contains("accel"), lower.contains("gyro"));
-                self.imu.push(ImuSample {
-                    time_s,
-                    accel_mps2: (!is_gyro).then_some(accel),
-                    gyro_radps: (!is_accel).then_some(gyro),
-                });
+                self.add_imu(topic, time_s, gyro, accel);
             }
             _ => {}
         }
@@ -141,6 +191,17 @@ impl Collected {
 fn is_depth_units_topic(topic: &str) -> bool {
     let lower = topic.to_ascii_lowercase().replace('_', " ");
     lower.ends_with("/option/depth units/value")
+}
+
+/// An image topic's stream (`/device_0/sensor_0/Depth_0`): the topic
+/// without `image/data` (ROS1) or `image/data/compressed[Depth]` (ROS2).
+fn stream_of(image_topic: &str) -> &str {
+    let t = image_topic.trim_end_matches('/');
+    let t = t
+        .strip_suffix("/compressedDepth")
+        .or_else(|| t.strip_suffix("/compressed"))
+        .unwrap_or(t);
+    parent(t, 2)
 }
 
 /// `topic` without its last `n` components.
@@ -154,7 +215,10 @@ fn parent(topic: &str, n: usize) -> &str {
 
 /// The topic among `candidates` whose name holds one of `names` (any
 /// case), else the one with most images.
-fn pick<'a>(candidates: &[(&'a String, &'a ImageTopic)], names: &[&str]) -> Option<&'a String> {
+fn pick<'a, L>(
+    candidates: &[(&'a String, &'a ImageTopic<L>)],
+    names: &[&str],
+) -> Option<&'a String> {
     let named = candidates
         .iter()
         .filter(|(t, _)| {
@@ -172,11 +236,13 @@ fn pick<'a>(candidates: &[(&'a String, &'a ImageTopic)], names: &[&str]) -> Opti
 }
 
 /// A stream's calibration: librealsense's `<stream>/info/camera_info`
-/// beside `<stream>/image/data`, or a `camera_info` beside the image topic.
-fn camera_info_of<'a>(c: &'a Collected, image_topic: &str) -> Option<&'a CameraInfo> {
-    let stream = parent(image_topic, 2);
+/// (ROS1) or `<stream>/image/camera_info` (ROS2) beside
+/// `<stream>/image/data`, or a `camera_info` beside the image topic.
+fn camera_info_of<'a, L>(c: &'a Collected<L>, image_topic: &str) -> Option<&'a CameraInfo> {
+    let stream = stream_of(image_topic);
     c.camera_info
         .get(&format!("{stream}/info/camera_info"))
+        .or_else(|| c.camera_info.get(&format!("{stream}/image/camera_info")))
         .or_else(|| {
             c.camera_info
                 .get(&format!("{}/camera_info", parent(image_topic, 1)))
@@ -184,15 +250,15 @@ fn camera_info_of<'a>(c: &'a Collected, image_topic: &str) -> Option<&'a CameraI
 }
 
 /// The extrinsics `<stream>/tf/<reference>` of the reference stream
-/// `reference` (librealsense writes `tf/0` or `tf/1`: the id of the
-/// device's reference stream), or of the lowest reference when `None`:
-/// the reference and the transform from it to this stream.
-fn extrinsics_of<'a>(
-    c: &'a Collected,
+/// `reference` (librealsense writes `tf/0` or `tf/1`, ROS2 `tf/ref_1`: the
+/// id of the device's reference stream), or of the lowest reference when
+/// `None`: the reference and the transform from it to this stream.
+fn extrinsics_of<'a, L>(
+    c: &'a Collected<L>,
     image_topic: &str,
     reference: Option<&str>,
 ) -> Option<(&'a str, DAffine3)> {
-    let prefix = format!("{}/tf/", parent(image_topic, 2));
+    let prefix = format!("{}/tf/", stream_of(image_topic));
     let (id, (t, q)) = c
         .transforms
         .iter()
@@ -205,12 +271,12 @@ fn extrinsics_of<'a>(
         .then(|| (id, DAffine3::from_rotation_translation(q.normalize(), t)))
 }
 
-impl Recording {
+impl<L: Copy> Recording<L> {
     /// The recording in a scan's messages. Errors: no depth stream, no
     /// depth frame, no depth calibration, colour in an encoding not read.
-    pub(crate) fn from_collected(mut c: Collected) -> Result<Self, RosbagError> {
+    pub(crate) fn from_collected(mut c: Collected<L>) -> Result<Self, RosbagError> {
         let mut warnings = Vec::new();
-        let topics: Vec<(&String, &ImageTopic)> = c.images.iter().collect();
+        let topics: Vec<(&String, &ImageTopic<L>)> = c.images.iter().collect();
         let depths: Vec<_> = topics
             .iter()
             .copied()
@@ -293,13 +359,13 @@ fn check_size(camera: &CameraModel, first: &ImageHead, topic: &str) -> Result<()
 
 /// The colour stream and its registration to depth; `None` (with a
 /// warning) when it has no calibration. An encoding not read is an error.
-fn colour_stream(
-    c: &Collected,
+fn colour_stream<L>(
+    c: &Collected<L>,
     depth_topic: &str,
     depth: &CameraModel,
     warnings: &mut Vec<RosbagError>,
 ) -> Result<Option<(String, Registration)>, RosbagError> {
-    let others: Vec<(&String, &ImageTopic)> = c
+    let others: Vec<(&String, &ImageTopic<L>)> = c
         .images
         .iter()
         .filter(|(t, i)| t.as_str() != depth_topic && !is_depth_encoding(&i.first.encoding))
@@ -360,12 +426,12 @@ fn colour_stream(
 
 /// The depth units option under the depth stream's sensor (or any), or
 /// the default with a warning; an implausible value is an error.
-fn depth_units(
-    c: &Collected,
+fn depth_units<L>(
+    c: &Collected<L>,
     depth_topic: &str,
     warnings: &mut Vec<RosbagError>,
 ) -> Result<f64, RosbagError> {
-    let sensor = parent(depth_topic, 3);
+    let sensor = parent(stream_of(depth_topic), 1);
     let mut found: Vec<(&String, &f32)> = c.depth_units.iter().collect();
     found.sort_by_key(|(t, _)| (!t.starts_with(sensor), t.as_str()));
     let Some((topic, &units)) = found.first() else {
@@ -390,9 +456,9 @@ fn depth_units(
 /// Depth images in time order, each with the colour image nearest in time
 /// if within half the depth's median frame period (the colour's, with one
 /// depth image; 1/30 s with one of each).
-fn pair(mut depth: Vec<(f64, Location)>, colour: &[(f64, Location)]) -> Vec<BagFrame> {
+fn pair<L: Copy>(mut depth: Vec<(f64, L)>, colour: &[(f64, L)]) -> Vec<BagFrame<L>> {
     depth.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut colour: Vec<(f64, Location)> = colour.to_vec();
+    let mut colour: Vec<(f64, L)> = colour.to_vec();
     colour.sort_by(|a, b| a.0.total_cmp(&b.0));
     let period = median_step(&depth)
         .or_else(|| median_step(&colour))
@@ -419,7 +485,7 @@ fn pair(mut depth: Vec<(f64, Location)>, colour: &[(f64, Location)]) -> Vec<BagF
 }
 
 /// The median time between consecutive stamps, if positive.
-fn median_step(stamps: &[(f64, Location)]) -> Option<f64> {
+fn median_step<L>(stamps: &[(f64, L)]) -> Option<f64> {
     let mut steps: Vec<f64> = stamps.windows(2).map(|w| w[1].0 - w[0].0).collect();
     steps.sort_by(f64::total_cmp);
     steps.get(steps.len() / 2).copied().filter(|s| *s > 0.0)
@@ -457,6 +523,15 @@ mod tests {
         let t = "/device_0/sensor_0/Depth_0/image/data";
         assert_eq!(parent(t, 2), "/device_0/sensor_0/Depth_0");
         assert_eq!(parent(t, 3), "/device_0/sensor_0");
+        assert_eq!(stream_of(t), "/device_0/sensor_0/Depth_0");
+        assert_eq!(
+            stream_of("/device_0/sensor_0/Depth_0/image/data/compressedDepth"),
+            "/device_0/sensor_0/Depth_0"
+        );
+        assert_eq!(
+            stream_of("/device_0/sensor_1/Color_0/image/data/compressed"),
+            "/device_0/sensor_1/Color_0"
+        );
         assert!(is_depth_units_topic(
             "/device_0/sensor_0/option/Depth Units/value"
         ));

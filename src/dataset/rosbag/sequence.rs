@@ -21,6 +21,22 @@ pub fn frame_name(topic: &str, time_s: f64) -> String {
 /// paired colour image has no [`FrameEntry::colour`].
 #[must_use]
 pub fn sequence_of(recording: &Recording, path: &str) -> Sequence {
+    let mut sequence = frames_of(recording, DatasetKind::RealSenseBag);
+    sequence.warnings = recording
+        .warnings
+        .iter()
+        .map(|w| DatasetError::Rosbag {
+            path: path.to_owned(),
+            source: w.clone(),
+        })
+        .collect();
+    sequence
+}
+
+/// The sequence of `recording` as `kind`, without its warnings (each
+/// recording format names its own file in them).
+#[must_use]
+pub(crate) fn frames_of<L>(recording: &Recording<L>, kind: DatasetKind) -> Sequence {
     let colour_topic = recording.colour.as_ref().map(|(t, _)| t.as_str());
     let frames = recording
         .frames
@@ -30,8 +46,8 @@ pub fn sequence_of(recording: &Recording, path: &str) -> Sequence {
             index,
             timestamp: f.time_s,
             colour: colour_topic
-                .zip(f.colour)
-                .map(|(topic, (t, _))| frame_name(topic, t)),
+                .zip(f.colour.as_ref())
+                .map(|(topic, (t, _))| frame_name(topic, *t)),
             depth: frame_name(&recording.depth_topic, f.time_s),
             confidence: None,
             calibrated_size: None,
@@ -41,7 +57,7 @@ pub fn sequence_of(recording: &Recording, path: &str) -> Sequence {
         .collect();
     let d = &recording.depth;
     Sequence {
-        kind: DatasetKind::RealSenseBag,
+        kind,
         preset: CameraPreset::RealSenseD400,
         intrinsics: Some(d.intrinsics()),
         depth_scale: Some((1.0 / recording.depth_units_m) as f32),
@@ -49,14 +65,7 @@ pub fn sequence_of(recording: &Recording, path: &str) -> Sequence {
         ground_truth: Vec::new(),
         odometry: Vec::new(),
         imu: merged_imu(&recording.imu),
-        warnings: recording
-            .warnings
-            .iter()
-            .map(|w| DatasetError::Rosbag {
-                path: path.to_owned(),
-                source: w.clone(),
-            })
-            .collect(),
+        warnings: Vec::new(),
     }
 }
 
