@@ -511,7 +511,7 @@ impl Relocaliser {
 /// well (they land on or behind model surfaces) but the model then has
 /// surfaces where the camera sees empty space. Among model points that land
 /// on a measured pixel; 0 when none do.
-fn see_through_fraction(
+pub(crate) fn see_through_fraction(
     prediction: &Prediction,
     level: &PyramidLevel,
     world_from_camera: &DAffine3,

@@ -19,7 +19,7 @@
 use super::recovery::{pins_pose, Tracked};
 use super::{LastFusedFrame, Pipeline, Verdict};
 use crate::fusion::Measured;
-use crate::loop_closure::relocalise::Relocalisation;
+use crate::loop_closure::relocalise::{see_through_fraction, Relocalisation};
 use crate::loop_closure::SegmentJoin;
 use crate::se3;
 use crate::track::track;
@@ -228,9 +228,22 @@ impl Pipeline {
         if check.lost.is_some() || !pose.is_finite() || !pins_pose(&check) {
             return None;
         }
-        let sampled = self.pyramid.check_level().map_or(&[][..], |l| &l.vertices);
+        // A search that ran far from where the camera was lost found a
+        // look-alike, not the place: relocalisation's bound from the
+        // keyframe it starts at.
+        let reloc = self.relocaliser.config();
+        let (dt, dr) = se3::motion_magnitude(&(from.inverse() * pose));
+        if dt > reloc.max_from_keyframe_m || dr.to_degrees() > reloc.max_from_keyframe_deg {
+            return None;
+        }
+        let sampled = self.pyramid.check_level()?;
         let verify = &self.config.tracker.verify;
-        let (violation, landed) = free_space_violation(&self.prediction, sampled, 1, &pose, verify);
-        (landed > 0 && violation <= verify.max_free_space_fraction).then_some(pose)
+        let (violation, landed) =
+            free_space_violation(&self.prediction, &sampled.vertices, 1, &pose, verify);
+        // Both ways, as relocalisation checks: the model must not show
+        // surfaces where the frame sees through to farther ones.
+        let see_through = see_through_fraction(&self.prediction, sampled, &pose, verify);
+        let limit = verify.max_free_space_fraction;
+        (landed > 0 && violation <= limit && see_through <= limit).then_some(pose)
     }
 }
