@@ -441,7 +441,8 @@ impl FreeDirections {
         if k == 0
             || colour.count < min_residuals
             || !(variance > 0.0 && variance.is_finite())
-            || !(max_sigma > 0.0)
+            || max_sigma.is_nan()
+            || max_sigma <= 0.0
         {
             return (Self::default(), *self);
         }
