@@ -206,8 +206,12 @@ fn rotation_deg(m: &DAffine3) -> f64 {
     ((trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
 }
 
+/// The synthetic config with colour asked where the geometry leaves
+/// directions free (off by default: see `TrackerConfig::colour_pins_below_m`).
 fn config() -> SlamConfig {
-    synthetic_config(synthetic::default_intrinsics().half())
+    let mut config = synthetic_config(synthetic::default_intrinsics().half());
+    config.tracker.colour_pins_below_m = 1e-3;
+    config
 }
 
 /// Frames reported tracked while looking up whose step was off by more

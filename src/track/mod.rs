@@ -188,8 +188,11 @@ pub struct TrackerConfig {
     pub motion_prior: MotionPriorConfig,
 }
 
+/// Off: with 1 mm, `tests/hand_held_swings.rs` regressed (the real 7-Scenes
+/// kitchen at every 8th frame 3.09 cm ATE over its bound, the synthetic
+/// swings lost longer); on in `tests/textured_ceiling.rs` only.
 fn colour_pins_below_m_default() -> f64 {
-    1e-3
+    0.0
 }
 
 impl Default for TrackerConfig {
