@@ -139,8 +139,10 @@ impl Pipeline {
     /// Creates an empty pipeline after validating `config`.
     pub fn new(config: SlamConfig) -> Result<Self, PipelineError> {
         config.validate()?;
-        // Grey levels are read only by the photometric term.
-        let photometric = config.tracker.mode != TrackerMode::Icp;
+        // Grey levels are read only by the photometric term (in ICP mode,
+        // where the geometry leaves directions free).
+        let photometric =
+            config.tracker.mode != TrackerMode::Icp || config.tracker.colour_pins_below_m > 0.0;
         let levels = PreprocessConfig {
             levels: config.working_levels(),
             ..config.preprocess

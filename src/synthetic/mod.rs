@@ -48,6 +48,7 @@ pub use render::{
 };
 pub use scene::{Scene, SceneBox, ROOM_MAX, ROOM_MIN};
 pub use swing::{render_blurred, turn_between_deg, SwingPath};
+pub use texture::CEILING_MATERIAL;
 pub use trajectory::{
     default_intrinsics, look_at, trajectory, trajectory_pose, trajectory_pose_at,
 };

@@ -134,6 +134,22 @@ impl Scene {
         Self { boxes }
     }
 
+    /// The room ([`Self::room`]) under an office ceiling: a 10 cm slab just
+    /// below the room's ceiling (its underside at `y = -2.9`) painted as
+    /// [`super::CEILING_MATERIAL`], plain but for one light panel and three
+    /// vents. Looking up, the view is one plane whose only texture is
+    /// theirs.
+    #[must_use]
+    pub fn with_office_ceiling() -> Self {
+        let mut scene = Self::room();
+        scene.boxes.push(SceneBox::solid(
+            DVec3::new(ROOM_MIN.x + 0.01, ROOM_MIN.y, ROOM_MIN.z + 0.01),
+            DVec3::new(ROOM_MAX.x - 0.01, ROOM_MIN.y + 0.1, ROOM_MAX.z - 0.01),
+            super::CEILING_MATERIAL,
+        ));
+        scene
+    }
+
     /// Distance from `point` (world) to the nearest box face, metres
     /// (`f64::INFINITY` for an empty scene).
     #[must_use]

@@ -41,10 +41,42 @@ pub(super) fn sin_turns(x: f32) -> f32 {
     0.225 * (y * y.abs() - y) + y
 }
 
+/// Material of an office ceiling ([`super::Scene::with_office_ceiling`]):
+/// plain paint with one light panel and a few vents, texture only where
+/// they are (a real ceiling, not the room's patterned faces).
+pub const CEILING_MATERIAL: u32 = 0xCE11;
+
+/// The office ceiling at world `(z, x)` (metres, the face's in-plane
+/// coordinates): off-white paint (205), a 1.0 x 0.5 m light panel (250)
+/// in a 2 cm dark frame centred at x = 0.3, z = 0.4, and three 0.25 m
+/// square vents of slats every 2.5 cm.
+#[inline]
+fn ceiling(z: f32, x: f32) -> f32 {
+    let (px, pz) = ((x - 0.3).abs(), (z - 0.4).abs());
+    if px < 0.5 && pz < 0.25 {
+        return if px > 0.48 || pz > 0.23 { 110.0 } else { 250.0 };
+    }
+    for (vx, vz) in [(-0.5, 0.1), (1.1, 0.8), (0.8, -0.1)] {
+        let (dx, dz) = ((x - vx).abs(), (z - vz).abs());
+        if dx < 0.125 && dz < 0.125 {
+            return if dx > 0.11 || dz > 0.11 || sin_turns(z / 0.025) > 0.0 {
+                150.0
+            } else {
+                70.0
+            };
+        }
+    }
+    205.0
+}
+
 /// Procedural texture of face `face` (0..6) of material `material` at in-plane
 /// coordinates (a, b), metres; returns linear 0..255 RGB before shading.
 #[inline]
 pub(super) fn texture(material: u32, face: u32, a: f32, b: f32) -> [f32; 3] {
+    if material == CEILING_MATERIAL {
+        let grey = ceiling(a, b);
+        return [grey, grey * 0.98, grey * 0.95];
+    }
     let hsh = hash32(material.wrapping_mul(16) + face + 1);
     // Base colour: each channel 90..200 from the hash.
     let base = [

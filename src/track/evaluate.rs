@@ -33,20 +33,82 @@ pub(super) struct Evaluation {
     pub(super) dense_icp: Option<icp::IcpStep>,
     /// Weighted cost per residual of each term, for the damping decision.
     pub(super) mean_cost: f64,
-    /// The photometric term alone, unscaled (empty in ICP mode).
+    /// The photometric term alone, unscaled (in ICP mode: only where
+    /// colour was asked about the free directions).
     pub(super) photometric: se3::NormalEquations,
+    /// ICP mode: the photometric term in ICP's units, where it pins free
+    /// directions ([`colour_where_free`]); empty otherwise.
+    pub(super) colour: se3::NormalEquations,
+    /// The directions held in this evaluation's step: the frame's free
+    /// ones less those colour pins.
+    pub(super) held: super::FreeDirections,
+}
+
+impl Evaluation {
+    /// The system the step solves before holding: the mode's, plus colour
+    /// along the free directions it pins.
+    pub(super) fn solved(&self) -> se3::NormalEquations {
+        self.system.merged(&self.colour)
+    }
+}
+
+/// On a frame with free directions, the directions whose geometric
+/// information (unit-diagonal scaling) is below this fraction of the
+/// strongest are colour's to pin too, or held.
+const COLOUR_CANDIDATE_RATIO: f64 = 0.05;
+
+/// Full-resolution pixels of colour that count as one independent
+/// measurement: a JPEG block (8x8), over which compression, demosaicing
+/// and motion blur share their errors.
+const COLOUR_CORRELATED_PIXELS: f64 = 64.0;
+
+/// Residuals colour needs before it may pin a direction.
+const MIN_COLOUR_RESIDUALS: usize = 100;
+
+/// ICP mode, a frame with free directions: which of them the photometric
+/// term `photometric` pins to [`TrackerConfig::colour_pins_below_m`]
+/// (scaled by the level's pixel size), and, when it pins any, that term in
+/// the units of the ICP system `geometric` (each divided by its mean
+/// squared residual, then multiplied by ICP's), to be added to it: the
+/// joint system, on the frames whose geometry needs it. Returns (colour,
+/// still held).
+fn colour_where_free(
+    free: &super::FreeDirections,
+    photometric: &se3::NormalEquations,
+    geometric: &se3::NormalEquations,
+    level: usize,
+    config: &TrackerConfig,
+) -> (se3::NormalEquations, super::FreeDirections) {
+    // One residual of `level` covers 4^level pixels; JPEG's errors are
+    // shared over its 8x8 blocks, so a finer residual is not a whole
+    // measurement.
+    let shared = (COLOUR_CORRELATED_PIXELS / f64::from(1u32 << (2 * level.min(8)))).max(1.0);
+    let max_sigma = config.colour_pins_below_m * f64::from(1u32 << level.min(16)) / shared.sqrt();
+    // The frame's measure of what is free misses directions depth noise
+    // poses as information for; on a view that leaves any direction free,
+    // every direction the geometry pins poorly is colour's to pin, or held.
+    let weak = super::FreeDirections::weak_in(&free.pinned(geometric, 1.0), COLOUR_CANDIDATE_RATIO);
+    let free = &free.with(&weak);
+    let (pinned, held) = free.split_by_colour(photometric, max_sigma, MIN_COLOUR_RESIDUALS);
+    if pinned.count() == 0 {
+        return (se3::NormalEquations::default(), held);
+    }
+    let mean = |s: &se3::NormalEquations| s.cost / s.count.max(1) as f64;
+    let scale = mean(geometric) / mean(photometric).max(1e-12);
+    let mut colour = se3::NormalEquations::default();
+    colour.add_scaled(photometric, scale, scale);
+    (colour, held)
 }
 
 /// Builds the mode's normal equations at `level` for the estimate
 /// `camera_from_world`, with ICP sources every `stride` model pixels.
 fn evaluate(
-    pyramid: &FramePyramid,
-    workspace: &TrackerWorkspace,
+    problem: &Problem,
     (level, stride): (usize, usize),
     camera_from_world: &DAffine3,
-    config: &TrackerConfig,
     scales: &mut Option<(f64, f64)>,
 ) -> Evaluation {
+    let (pyramid, workspace, config) = (problem.pyramid, problem.workspace, problem.config);
     let t = RigidF32::from_affine(camera_from_world);
     let target = &pyramid.levels[level];
     let mean = |s: &se3::NormalEquations| s.cost / s.count.max(1) as f64;
@@ -60,13 +122,27 @@ fn evaluate(
             .system
     };
     match config.mode {
+        TrackerMode::Icp if problem.colour => {
+            let (step, photometric) = rayon::join(icp_full, rgb);
+            let (colour, held) =
+                colour_where_free(&problem.free, &photometric, &step.system, level, config);
+            Evaluation {
+                mean_cost: mean(&step.system),
+                system: step.system,
+                dense_icp: dense(&step),
+                photometric,
+                colour,
+                held,
+            }
+        }
         TrackerMode::Icp => {
             let step = icp_full();
             Evaluation {
                 mean_cost: mean(&step.system),
                 system: step.system,
                 dense_icp: dense(&step),
-                photometric: se3::NormalEquations::default(),
+                held: problem.free,
+                ..Evaluation::default()
             }
         }
         TrackerMode::Rgb => {
@@ -76,6 +152,7 @@ fn evaluate(
                 system,
                 dense_icp: None,
                 photometric: system,
+                ..Evaluation::default()
             }
         }
         TrackerMode::Joint => {
@@ -101,6 +178,7 @@ fn evaluate(
                 system,
                 dense_icp: dense(&step),
                 photometric,
+                ..Evaluation::default()
             }
         }
     }
@@ -111,8 +189,12 @@ fn evaluate(
 pub(super) struct Problem<'a> {
     pub(super) pyramid: &'a FramePyramid,
     pub(super) prediction: &'a Prediction,
-    /// Directions the step must not move along.
+    /// Directions the frame's geometry leaves free: held unless colour
+    /// pins them (`colour`).
     pub(super) free: super::FreeDirections,
+    /// ICP mode: ask the photometric term about `free` (see
+    /// [`TrackerConfig::colour_pins_below_m`]).
+    pub(super) colour: bool,
     /// The hand's motion prior, added to each step's system.
     pub(super) prior: Option<&'a super::MotionPrior>,
     pub(super) workspace: &'a TrackerWorkspace,
@@ -129,13 +211,6 @@ impl Problem<'_> {
         camera_from_world: &DAffine3,
         scales: &mut Option<(f64, f64)>,
     ) -> Evaluation {
-        evaluate(
-            self.pyramid,
-            self.workspace,
-            level_stride,
-            camera_from_world,
-            self.config,
-            scales,
-        )
+        evaluate(self, level_stride, camera_from_world, scales)
     }
 }

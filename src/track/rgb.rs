@@ -10,10 +10,13 @@
 //! of the grey range), is
 //!
 //! ```text
-//! r = (I_cur(pi(p')) - I_ref) / 255
+//! r = (I_cur(pi(p')) - gain I_ref - bias) / 255
 //! ```
 //!
-//! (the negative of `e = I_ref - I_cur`, so `J = -de/dxi = dr/dxi`).
+//! (the negative of `e = gain I_ref + bias - I_cur`, so `J = -de/dxi = dr/dxi`),
+//! with `gain` and `bias` fitted by least squares over the usable pixels at
+//! the step's estimate (an auto-exposure change is no motion; 1 and 0 with
+//! [`PhotometricConfig::affine_brightness`] off).
 //!
 //! # Jacobian
 //!
@@ -89,6 +92,17 @@ pub struct PhotometricConfig {
     pub max_depth_delta_m: f32,
     /// Huber threshold on the residual, in `0..1` grey units.
     pub huber: f32,
+    /// Compare the frame with the reference through a gain and bias
+    /// (`I_cur ~ gain I_ref + bias`) fitted at every step, as DSO and
+    /// ElasticFusion's successors do: an auto-exposure change is then no
+    /// motion. Without it a 25 % exposure step leaves residuals of tens of
+    /// grey levels that only correlate with the reference's brightness.
+    #[serde(default = "affine_brightness_default")]
+    pub affine_brightness: bool,
+}
+
+fn affine_brightness_default() -> bool {
+    true
 }
 
 impl Default for PhotometricConfig {
@@ -98,6 +112,7 @@ impl Default for PhotometricConfig {
             min_gradient: vec![5.0, 3.0, 1.0],
             max_depth_delta_m: 0.07,
             huber: 10.0 / 255.0,
+            affine_brightness: affine_brightness_default(),
         }
     }
 }
@@ -112,12 +127,65 @@ pub struct ReferencePoint {
 }
 
 /// Normal equations of one photometric step.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 pub struct RgbStep {
     /// Accumulated system in `0..1` grey units; `count` = residuals used.
     pub system: NormalEquations,
     /// Reference points that projected into the image.
     pub candidates: usize,
+    /// The brightness fit the residuals were taken through
+    /// (`I_cur ~ gain I_ref + bias`, grey levels); (1, 0) without it.
+    pub gain_bias: (f32, f32),
+}
+
+impl Default for RgbStep {
+    fn default() -> Self {
+        Self {
+            system: NormalEquations::default(),
+            candidates: 0,
+            gain_bias: (1.0, 0.0),
+        }
+    }
+}
+
+/// Sums of the brightness fit over the usable reference pixels.
+#[derive(Debug, Clone, Copy, Default)]
+struct BrightnessSums {
+    n: f64,
+    reference: f64,
+    current: f64,
+    reference2: f64,
+    cross: f64,
+}
+
+impl BrightnessSums {
+    fn merged(self, o: Self) -> Self {
+        Self {
+            n: self.n + o.n,
+            reference: self.reference + o.reference,
+            current: self.current + o.current,
+            reference2: self.reference2 + o.reference2,
+            cross: self.cross + o.cross,
+        }
+    }
+
+    /// Least-squares gain and bias, the gain kept within 0.5..2 (an
+    /// exposure step, not a change of scene); (1, mean difference) when the
+    /// reference's brightness barely varies.
+    fn gain_bias(&self) -> (f32, f32) {
+        if self.n < 16.0 {
+            return (1.0, 0.0);
+        }
+        let (mr, mc) = (self.reference / self.n, self.current / self.n);
+        let var = self.reference2 / self.n - mr * mr;
+        let cov = self.cross / self.n - mr * mc;
+        let gain = if var > 1.0 {
+            (cov / var).clamp(0.5, 2.0)
+        } else {
+            1.0
+        };
+        (gain as f32, (mc - gain * mr) as f32)
+    }
 }
 
 /// Buffers of one pyramid level, reused frame after frame.
@@ -236,29 +304,62 @@ impl RgbWorkspace {
         // gradient is zero on the border row and column: stay one pixel in.
         let (u_max, v_max) = ((w - 2) as f32, (h - 2) as f32);
         let references = &buffers.references;
+        // The reference's point in the frame, and the frame's grey level and
+        // gradient there, where the frame's depth agrees.
+        let sample = |reference: &ReferencePoint| {
+            let p = camera_from_world.point(reference.point_in_world);
+            if p.z <= 0.0 {
+                return None;
+            }
+            let px = k.project(p);
+            if !(px.x >= 1.0 && px.y >= 1.0 && px.x < u_max && px.y < v_max) {
+                return None;
+            }
+            let nearest = (px.y + 0.5) as usize * w + (px.x + 0.5) as usize;
+            let d = depth.get(nearest).copied().unwrap_or(0.0);
+            let agrees = d > 0.0 && (d - p.z).abs() <= max_delta;
+            Some((p, agrees.then(|| bilinear(image, w, px))))
+        };
+        let gain_bias = if config.affine_brightness {
+            sum_in_blocks(
+                references.len(),
+                CHUNK,
+                |range| {
+                    let mut sums = BrightnessSums::default();
+                    for reference in &references[range] {
+                        if let Some((_, Some([i, _, _]))) = sample(reference) {
+                            let (r, c) = (f64::from(reference.intensity), f64::from(i));
+                            sums.n += 1.0;
+                            sums.reference += r;
+                            sums.current += c;
+                            sums.reference2 += r * r;
+                            sums.cross += r * c;
+                        }
+                    }
+                    sums
+                },
+                BrightnessSums::merged,
+            )
+            .gain_bias()
+        } else {
+            (1.0, 0.0)
+        };
+        let (gain, bias) = gain_bias;
         // Fixed chunks summed in order: the same bits on any thread count.
-        sum_in_blocks(
+        let mut step = sum_in_blocks(
             references.len(),
             CHUNK,
             |range| {
                 let mut acc = RgbStep::default();
                 for reference in &references[range] {
-                    let p = camera_from_world.point(reference.point_in_world);
-                    if p.z <= 0.0 {
+                    let Some((p, at)) = sample(reference) else {
                         continue;
-                    }
-                    let px = k.project(p);
-                    if !(px.x >= 1.0 && px.y >= 1.0 && px.x < u_max && px.y < v_max) {
-                        continue;
-                    }
+                    };
                     acc.candidates += 1;
-                    let nearest = (px.y + 0.5) as usize * w + (px.x + 0.5) as usize;
-                    let d = depth.get(nearest).copied().unwrap_or(0.0);
-                    if d <= 0.0 || (d - p.z).abs() > max_delta {
+                    let Some([i, gx, gy]) = at else {
                         continue;
-                    }
-                    let [i, gx, gy] = bilinear(image, w, px);
-                    let r = (i - reference.intensity) * INTENSITY_SCALE;
+                    };
+                    let r = (i - gain * reference.intensity - bias) * INTENSITY_SCALE;
                     let inv_z = 1.0 / p.z;
                     let cu = gx * k.fx * inv_z;
                     let cv = gy * k.fy * inv_z;
@@ -277,8 +378,11 @@ impl RgbWorkspace {
             |a, b| RgbStep {
                 system: a.system.merged(&b.system),
                 candidates: a.candidates + b.candidates,
+                gain_bias: (1.0, 0.0),
             },
-        )
+        );
+        step.gain_bias = gain_bias;
+        step
     }
 }
 
