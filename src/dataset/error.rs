@@ -48,7 +48,7 @@ pub enum DatasetError {
     },
     /// The last line of a text file is malformed, as a row is that a
     /// recording stopped while writing: skipped, a warning in
-    /// [`Sequence::warnings`] (never returned as an error).
+    /// [`Sequence::warnings`](super::Sequence::warnings) (never returned as an error).
     #[error("{file}, line {line_number}: the last line is cut off, skipped ({reason}): `{line}`")]
     CutOffLine {
         /// The file being parsed.
@@ -114,7 +114,7 @@ pub enum DatasetError {
         reason: String,
     },
     /// A RealSense `.bag` (or one of its frames) could not be read, or
-    /// (in [`Sequence::warnings`]) was read with a warning.
+    /// (in [`Sequence::warnings`](super::Sequence::warnings)) was read with a warning.
     #[error("{path}: {source}")]
     Rosbag {
         /// The bag file.
@@ -124,7 +124,7 @@ pub enum DatasetError {
         source: rosbag::RosbagError,
     },
     /// A RealSense ROS2 `.db3` (or one of its frames) could not be read,
-    /// or (in [`Sequence::warnings`]) was read with a warning.
+    /// or (in [`Sequence::warnings`](super::Sequence::warnings)) was read with a warning.
     #[error("{path}: {source}")]
     Db3 {
         /// The .db3 file.
@@ -134,7 +134,7 @@ pub enum DatasetError {
         source: db3::Db3Error,
     },
     /// An Azure Kinect `.mkv` (or one of its frames) could not be read,
-    /// or (in [`Sequence::warnings`]) was read with a warning.
+    /// or (in [`Sequence::warnings`](super::Sequence::warnings)) was read with a warning.
     #[error("{path}: {source}")]
     Mkv {
         /// The .mkv file.
