@@ -7,7 +7,7 @@
 //! Env: FRAMES (30 Hz frames, default 900), STRIDES ("1,3"), FULL=1 (640x480,
 //! default 320x240), CLEAN=1 (no noise), and one switch per candidate:
 //! PRIOR=0 (no motion prior), SETTLED=c (fusion's settled confidence),
-//! UNIFORM=1 (no noise weights in tracking; fusion has none), WINDOW=n (active
+//! UNIFORM=1 (no noise weights in tracking or fusion), WINDOW=n (active
 //! window), JOINT=1 (the joint tracker, ICL-NUIM's; the default here is
 //! TUM's ICP). Prints ATE, the final position error
 //! and the true error at quarters of the path.

@@ -8,10 +8,8 @@
 //!
 //! Env: DIR (another sequence), NOSIM=1 (its depth as recorded), REPEAT ("1,3"), COUNT (frames of the sequence, default all),
 //! TRACKER (icp, rgb, joint), WINDOW (active window), SETTLED (settled
-//! confidence), UNIFORM=1 or TRACK_UNIFORM=1 (no noise weights; fusion
-//! has none by default), FUSION_WEIGHTED=1 (fusion weighted by the
-//! preset's model, the rule before `docs/performance.md#drift-with-frame-count`),
-//! VERBOSE=1 (every repeated
+//! confidence), UNIFORM=1 (no noise weights), FUSION_UNIFORM=1 or
+//! TRACK_UNIFORM=1 (one stage's weights off), VERBOSE=1 (every repeated
 //! push more than 2 mm off its frame's first).
 //! `cargo run --release --example repeat_frames`
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // a test, bench or example fails loudly
@@ -46,9 +44,9 @@ fn main() {
         config.set_noise(surfel_slam::SensorNoise::uniform());
         config.simulate_noise = keep;
     }
-    // Fusion weighted as tracking is (the old rule).
-    if std::env::var_os("FUSION_WEIGHTED").is_some() {
-        config.fusion.noise = config.tracker.noise;
+    // Either stage's noise weights alone off.
+    if std::env::var_os("FUSION_UNIFORM").is_some() {
+        config.fusion.noise = surfel_slam::SensorNoise::uniform();
     }
     if std::env::var_os("TRACK_UNIFORM").is_some() {
         config.tracker.noise = surfel_slam::SensorNoise::uniform();

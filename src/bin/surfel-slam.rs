@@ -90,7 +90,7 @@ pub(crate) struct TrackingArgs {
         value_parser = non_negative
     )]
     icp_weight: f64,
-    /// Depth noise model weighting tracking (fusion averages unweighted): kinect-v1,
+    /// Depth noise model weighting tracking and fusion: kinect-v1,
     /// structured-light, simulated-kinect, active-stereo, lidar, rendered,
     /// uniform (no weighting), or coefficients
     /// `base,quadratic[,offset[,angle[,lateral_px[,edge]]]]` of
@@ -100,8 +100,7 @@ pub(crate) struct TrackingArgs {
     /// rendered when the first frame's depth is clean, else simulated-kinect].
     #[arg(long, value_parser = noise_parser)]
     noise: Option<SensorNoise>,
-    /// Experiments: smallest noise weight of a fused measurement (only
-    /// with a weighted `FusionConfig::noise`; none is by default).
+    /// Experiments: smallest noise weight of a fused measurement.
     #[arg(long, hide = true, allow_negative_numbers = true, value_parser = non_negative_f32)]
     min_noise_weight: Option<f32>,
     /// Hold a lost camera at its last placed pose instead of carrying it on

@@ -33,8 +33,7 @@ pub struct SlamConfig {
     pub loop_closure: LoopClosureConfig,
     /// When set, the first frame's depth is measured
     /// ([`crate::noise::depth_is_clean`]) and, if it is clean (rendered),
-    /// tracking and fusion use this noise model instead of theirs (fusion's
-    /// is uniform by default either way). The
+    /// tracking and fusion use this noise model instead of theirs. The
     /// ICL-NUIM preset sets it: the dataset ships clean and Kinect-noised
     /// renderings in one format, and the structured-light weighting that
     /// the noisy ones need slid clean views along a wall's join with the
@@ -89,8 +88,10 @@ impl SlamConfig {
                 noise: preset.sensor_noise(),
                 ..TrackerConfig::default()
             },
-            // Merges average unweighted (`FusionConfig::noise`).
-            fusion: FusionConfig::default(),
+            fusion: FusionConfig {
+                noise: preset.sensor_noise(),
+                ..FusionConfig::default()
+            },
             relocalise: RelocaliseConfig::default(),
             loop_closure: LoopClosureConfig::default(),
             clean_depth_noise: preset.clean_depth_noise(),
@@ -100,12 +101,11 @@ impl SlamConfig {
         }
     }
 
-    /// Sets the sensor's depth noise model, which weights tracking
-    /// ([`SensorNoise::uniform`] turns the weighting off). Fusion's merges
-    /// stay as `fusion.noise` has them, unweighted by default (see
-    /// [`FusionConfig::noise`]).
+    /// Sets the sensor's depth noise model, which weights both tracking and
+    /// fusion ([`SensorNoise::uniform`] turns the weighting off).
     pub fn set_noise(&mut self, noise: SensorNoise) {
         self.tracker.noise = noise;
+        self.fusion.noise = noise;
         self.clean_depth_noise = None;
     }
 

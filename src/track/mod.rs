@@ -134,8 +134,8 @@ pub struct TrackerConfig {
     /// Correspondence gates and robust weight.
     pub gates: IcpGates,
     /// Depth noise of the sensor: ICP residuals are divided by their
-    /// predicted deviation (see [`icp`]); uniform = no weighting. Set by
-    /// `SlamConfig::set_noise` (fusion's merges stay unweighted).
+    /// predicted deviation (see [`icp`]); uniform = no weighting. Set with
+    /// the fusion's by `SlamConfig::set_noise`.
     pub noise: SensorNoise,
     /// Stop iterating a level when the step is below this (rad or m).
     pub convergence: f64,

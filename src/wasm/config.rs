@@ -56,7 +56,7 @@ export interface SlamConfig {
   relocalise?: boolean;
   /** After this many frames lost in a row, map on from the last placed pose in a new segment, joined to the map so far once a frame is placed in it (0: stay lost until re-acquired). */
   restartAfterLost?: number;
-  /** Depth noise model weighting tracking, fusion averaging unweighted (default: the preset's; 'uniform' = no weighting). */
+  /** Depth noise model weighting tracking and fusion (default: the preset's; 'uniform' = no weighting). */
   noise?: 'kinect-v1' | 'structured-light' | 'simulated-kinect' | 'active-stereo' | 'lidar' | 'rendered' | 'uniform';
   /** Simulate a sensor's noise on every pushed frame's (clean) depth: ICL-NUIM's Kinect v1 recipe. */
   simulateNoise?: 'kinect-v1' | null;
