@@ -27,6 +27,7 @@ pub mod archive;
 pub mod db3;
 mod decode;
 mod error;
+mod fields;
 pub mod icl_nuim;
 mod lines;
 pub mod mkv;

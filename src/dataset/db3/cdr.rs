@@ -8,6 +8,7 @@
 //! them uninitialised).
 
 use super::Db3Error;
+use crate::dataset::fields::FieldReader;
 use crate::dataset::rosbag::CameraInfo;
 
 /// Reads fields in order from a message's bytes; errors name `topic`.
@@ -66,32 +67,6 @@ impl<'a> Cursor<'a> {
         Ok(out)
     }
 
-    fn array<const N: usize>(&mut self, what: &str) -> Result<[u8; N], Db3Error> {
-        self.align(N);
-        let mut out = [0u8; N];
-        out.copy_from_slice(self.take(N, what)?);
-        if !self.little {
-            out.reverse();
-        }
-        Ok(out)
-    }
-
-    fn u32(&mut self, what: &str) -> Result<u32, Db3Error> {
-        Ok(u32::from_le_bytes(self.array(what)?))
-    }
-
-    fn f64(&mut self, what: &str) -> Result<f64, Db3Error> {
-        Ok(f64::from_le_bytes(self.array(what)?))
-    }
-
-    fn f64s<const N: usize>(&mut self, what: &str) -> Result<[f64; N], Db3Error> {
-        let mut out = [0.0; N];
-        for v in &mut out {
-            *v = self.f64(what)?;
-        }
-        Ok(out)
-    }
-
     /// A string: its bytes without the terminating NUL.
     fn string(&mut self, what: &str) -> Result<String, Db3Error> {
         let n = self.u32(what)? as usize;
@@ -112,6 +87,20 @@ impl<'a> Cursor<'a> {
         let stamp = self.time("header")?;
         self.string("header's frame_id")?;
         Ok(stamp)
+    }
+}
+
+impl FieldReader for Cursor<'_> {
+    type Error = Db3Error;
+
+    fn array<const N: usize>(&mut self, what: &str) -> Result<[u8; N], Self::Error> {
+        self.align(N);
+        let mut out = [0u8; N];
+        out.copy_from_slice(self.take(N, what)?);
+        if !self.little {
+            out.reverse();
+        }
+        Ok(out)
     }
 }
 

@@ -6,6 +6,7 @@
 //! after the fields read are ignored (librealsense appends to some).
 
 use super::RosbagError;
+use crate::dataset::fields::FieldReader;
 
 /// Reads fields in order from a message's bytes; errors name `topic`.
 struct Cursor<'a> {
@@ -40,37 +41,6 @@ impl<'a> Cursor<'a> {
         Ok(out)
     }
 
-    fn array<const N: usize>(&mut self, what: &str) -> Result<[u8; N], RosbagError> {
-        let bytes = self.take(N, what)?;
-        let mut out = [0u8; N];
-        out.copy_from_slice(bytes);
-        Ok(out)
-    }
-
-    fn u8(&mut self, what: &str) -> Result<u8, RosbagError> {
-        Ok(self.array::<1>(what)?[0])
-    }
-
-    fn u32(&mut self, what: &str) -> Result<u32, RosbagError> {
-        Ok(u32::from_le_bytes(self.array(what)?))
-    }
-
-    fn f32(&mut self, what: &str) -> Result<f32, RosbagError> {
-        Ok(f32::from_le_bytes(self.array(what)?))
-    }
-
-    fn f64(&mut self, what: &str) -> Result<f64, RosbagError> {
-        Ok(f64::from_le_bytes(self.array(what)?))
-    }
-
-    fn f64s<const N: usize>(&mut self, what: &str) -> Result<[f64; N], RosbagError> {
-        let mut out = [0.0; N];
-        for v in &mut out {
-            *v = self.f64(what)?;
-        }
-        Ok(out)
-    }
-
     fn string(&mut self, what: &str) -> Result<String, RosbagError> {
         let n = self.u32(what)? as usize;
         Ok(String::from_utf8_lossy(self.take(n, what)?).into_owned())
@@ -89,6 +59,17 @@ impl<'a> Cursor<'a> {
         let stamp = self.time("header")?;
         self.string("header's frame_id")?;
         Ok(stamp)
+    }
+}
+
+impl FieldReader for Cursor<'_> {
+    type Error = RosbagError;
+
+    fn array<const N: usize>(&mut self, what: &str) -> Result<[u8; N], Self::Error> {
+        let bytes = self.take(N, what)?;
+        let mut out = [0u8; N];
+        out.copy_from_slice(bytes);
+        Ok(out)
     }
 }
 
